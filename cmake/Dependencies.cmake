@@ -1,0 +1,21 @@
+# Third-party libraries, all from Debian (scripts/setup installs them).
+find_package(Threads REQUIRED)
+find_package(Eigen3 3.4 REQUIRED NO_MODULE)
+find_package(fmt REQUIRED)
+find_package(spdlog REQUIRED)
+find_package(yaml-cpp REQUIRED)
+find_package(nlohmann_json 3.10 REQUIRED)
+find_package(CLI11 REQUIRED)
+find_package(ZLIB REQUIRED)
+find_package(TBB REQUIRED)
+# CGAL is header-only here; only the targets that need it link it (see fabrication/CMakeLists.txt).
+set(CGAL_DO_NOT_WARN_ABOUT_CMAKE_BUILD_TYPE TRUE)
+find_package(CGAL REQUIRED)
+find_package(GTest REQUIRED)
+if(HARDCOPY_BENCH)
+  find_package(benchmark REQUIRED)
+endif()
+find_package(PkgConfig REQUIRED)
+# Debian's libzip CMake config names tools that live in other packages; pkg-config is reliable.
+pkg_check_modules(LIBZIP REQUIRED IMPORTED_TARGET libzip)
+pkg_check_modules(LIB3MF IMPORTED_TARGET lib3MF)

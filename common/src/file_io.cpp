@@ -1,0 +1,116 @@
+#include "common/file_io.h"
+
+#include <fcntl.h>
+#include <fmt/format.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include <cerrno>
+#include <cstring>
+#include <random>
+
+namespace hc {
+namespace {
+
+std::string errno_text() { return std::strerror(errno); }
+
+class Fd {
+ public:
+  explicit Fd(int fd) : fd_(fd) {}
+  ~Fd() {
+    if (fd_ >= 0) ::close(fd_);
+  }
+  Fd(const Fd&) = delete;
+  Fd& operator=(const Fd&) = delete;
+  int get() const { return fd_; }
+  int release() { return std::exchange(fd_, -1); }
+
+ private:
+  int fd_;
+};
+
+std::filesystem::path temp_path_for(const std::filesystem::path& path) {
+  std::random_device rd;
+  return path.string() + fmt::format(".tmp-{:08x}", rd());
+}
+
+}  // namespace
+
+Result<std::string> read_file(const std::filesystem::path& path, std::size_t max_bytes) {
+  Fd fd(::open(path.c_str(), O_RDONLY | O_CLOEXEC));
+  if (fd.get() < 0) {
+    if (errno == ENOENT) return not_found(fmt::format("{}: no such file", path.string()));
+    return io_error(fmt::format("{}: cannot open: {}", path.string(), errno_text()));
+  }
+  struct stat st {};
+  if (::fstat(fd.get(), &st) != 0)
+    return io_error(fmt::format("{}: cannot stat: {}", path.string(), errno_text()));
+  if (S_ISDIR(st.st_mode)) return invalid_argument(fmt::format("{}: is a directory", path.string()));
+  const auto size = static_cast<std::size_t>(st.st_size);
+  if (size > max_bytes)
+    return invalid_argument(
+        fmt::format("{}: file is {} bytes, more than the limit of {}", path.string(), size, max_bytes));
+  std::string data;
+  data.resize(size);
+  std::size_t got = 0;
+  while (got < size) {
+    const ssize_t n = ::read(fd.get(), data.data() + got, size - got);
+    if (n < 0) {
+      if (errno == EINTR) continue;
+      return io_error(fmt::format("{}: read failed: {}", path.string(), errno_text()));
+    }
+    if (n == 0) break;  // file shrank while we read it
+    got += static_cast<std::size_t>(n);
+  }
+  data.resize(got);
+  // Non-regular files (pipes, /dev/stdin) report size 0: read them to the end.
+  if (!S_ISREG(st.st_mode)) {
+    char buf[1 << 16];
+    for (;;) {
+      const ssize_t n = ::read(fd.get(), buf, sizeof buf);
+      if (n < 0 && errno == EINTR) continue;
+      if (n < 0) return io_error(fmt::format("{}: read failed: {}", path.string(), errno_text()));
+      if (n == 0) break;
+      if (data.size() + static_cast<std::size_t>(n) > max_bytes)
+        return invalid_argument(fmt::format("{}: more than {} bytes", path.string(), max_bytes));
+      data.append(buf, static_cast<std::size_t>(n));
+    }
+  }
+  return data;
+}
+
+Status write_file_atomic(const std::filesystem::path& path,
+                         const std::function<Status(const std::filesystem::path& tmp)>& produce) {
+  const auto tmp = temp_path_for(path);
+  Status s = produce(tmp);
+  if (s.ok()) {
+    // Flush the data to disk before the rename makes it visible under the final name.
+    Fd fd(::open(tmp.c_str(), O_RDONLY | O_CLOEXEC));
+    if (fd.get() < 0 || ::fsync(fd.get()) != 0)
+      s = io_error(fmt::format("{}: cannot sync: {}", tmp.string(), errno_text()));
+  }
+  if (s.ok() && ::rename(tmp.c_str(), path.c_str()) != 0)
+    s = io_error(fmt::format("{}: cannot rename into place: {}", path.string(), errno_text()));
+  if (!s.ok()) ::unlink(tmp.c_str());
+  return s;
+}
+
+Status write_file_atomic(const std::filesystem::path& path, std::string_view bytes) {
+  return write_file_atomic(path, [&](const std::filesystem::path& tmp) -> Status {
+    Fd fd(::open(tmp.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644));
+    if (fd.get() < 0)
+      return io_error(fmt::format("{}: cannot create: {}", path.string(), errno_text()));
+    std::size_t done = 0;
+    while (done < bytes.size()) {
+      const ssize_t n = ::write(fd.get(), bytes.data() + done, bytes.size() - done);
+      if (n < 0 && errno == EINTR) continue;
+      if (n < 0) return io_error(fmt::format("{}: write failed: {}", path.string(), errno_text()));
+      done += static_cast<std::size_t>(n);
+    }
+    if (::close(fd.release()) != 0)
+      return io_error(fmt::format("{}: close failed: {}", path.string(), errno_text()));
+    return {};
+  });
+}
+
+}  // namespace hc

@@ -1,0 +1,50 @@
+// Paths for tests: the shared third-party corpus (../shared/data), the build's bin/ and a scratch
+// directory that is removed when the test ends.
+#pragma once
+
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <random>
+#include <string>
+#include <vector>
+
+namespace hc::testing {
+
+inline std::filesystem::path shared_data() { return HARDCOPY_SHARED_DATA; }
+inline std::filesystem::path shared_data(const std::string& rel) { return shared_data() / rel; }
+inline std::filesystem::path bin_dir() { return HARDCOPY_BIN_DIR; }
+inline std::filesystem::path source_dir() { return HARDCOPY_SOURCE_DIR; }
+
+// Every file in ../shared/data/meshes (the corpus for property tests), sorted by name.
+inline std::vector<std::filesystem::path> corpus_meshes() {
+  std::vector<std::filesystem::path> out;
+  for (const auto& e : std::filesystem::directory_iterator(shared_data("meshes")))
+    if (e.is_regular_file()) out.push_back(e.path());
+  std::sort(out.begin(), out.end());
+  return out;
+}
+
+// A fresh directory under the system temp dir, deleted with everything in it on destruction.
+class ScratchDir {
+ public:
+  ScratchDir() {
+    std::random_device rd;
+    path_ = std::filesystem::temp_directory_path() /
+            ("hardcopy-test-" + std::to_string(rd()) + "-" + std::to_string(rd()));
+    std::filesystem::create_directories(path_);
+  }
+  ~ScratchDir() {
+    std::error_code ec;
+    std::filesystem::remove_all(path_, ec);
+  }
+  ScratchDir(const ScratchDir&) = delete;
+  ScratchDir& operator=(const ScratchDir&) = delete;
+  const std::filesystem::path& path() const { return path_; }
+  std::filesystem::path operator/(const std::string& name) const { return path_ / name; }
+
+ private:
+  std::filesystem::path path_;
+};
+
+}  // namespace hc::testing
