@@ -24,4 +24,9 @@ Status configure(std::string_view spec);
 // configure(getenv(HARDCOPY_LOG)) if set; otherwise leaves the default level ("info").
 Status configure_from_env();
 
+// Sends every module's output, from existing and future loggers, to `sink` (with the Hardcopy
+// pattern: time, level, module) instead of stderr; nullptr restores stderr. Tests capture log
+// output this way, and a daemon can route its log lines into a recording.
+void set_sink(spdlog::sink_ptr sink);
+
 }  // namespace hc::log

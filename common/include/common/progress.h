@@ -6,6 +6,8 @@
 #include <atomic>
 #include <chrono>
 #include <cstdint>
+#include <cstdio>
+#include <functional>
 #include <memory>
 #include <string>
 #include <string_view>
@@ -24,14 +26,35 @@ class ProgressReporter {
 };
 
 enum class ProgressStyle {
-  kAuto,   // bar on a terminal, plain lines otherwise (and whenever the CI variable is set)
+  kAuto,  // bar on a terminal, plain lines otherwise (and whenever the CI variable is set)
   kBar,
   kLines,
   kQuiet,
 };
 
+// Where and how often the console reporter draws. The defaults are what tools want.
+struct ConsoleProgressOptions {
+  ProgressStyle style = ProgressStyle::kAuto;
+  std::FILE* out = stderr;
+  // Shortest time between two bar redraws (~10 Hz: smooth, and cheap on slow terminals).
+  std::chrono::milliseconds bar_interval{100};
+  // Shortest time between two plain lines, so CI logs stay readable.
+  std::chrono::milliseconds line_interval{5000};
+  // The clock used for throttling, rates and ETAs; empty means std::chrono::steady_clock::now.
+  // Tests substitute a manual clock.
+  std::function<std::chrono::steady_clock::time_point()> now;
+};
+
+// The style kAuto resolves to for `out`: kBar when `out` is a terminal and the CI environment
+// variable is unset, kLines otherwise. Other styles are returned unchanged.
+ProgressStyle resolve_progress_style(ProgressStyle style, std::FILE* out);
+
 // Reports to stderr.
 std::unique_ptr<ProgressReporter> make_console_progress(ProgressStyle style = ProgressStyle::kAuto);
+// Reports to options.out. Bar: one line redrawn in place with percent, count, rate and ETA. Lines:
+// "task: 40% (400/1000), 1.2 s" at begin, at most every line_interval, and a closing line at end.
+// An unknown total (0) shows the count only. Writes never fail loudly: a closed stream is ignored.
+std::unique_ptr<ProgressReporter> make_console_progress(const ConsoleProgressOptions& options);
 
 // A reporter that does nothing (what libraries use when the caller passes none).
 ProgressReporter& null_progress();

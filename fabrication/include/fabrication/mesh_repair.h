@@ -34,7 +34,8 @@ struct MeshRepairSummary {
   std::int64_t removed_duplicate_triangles = 0;
   std::int64_t removed_unreferenced_vertices = 0;
   std::int64_t flipped_triangles = 0;
-  std::int64_t split_non_manifold_vertices = 0;  // duplicated so orientation could be made consistent
+  // Vertices duplicated so that orientation could be made consistent (non-manifold spots).
+  std::int64_t split_non_manifold_vertices = 0;
   MeshCheckReport before;
   MeshCheckReport after;
   bool closed = false;     // after.closed
@@ -45,10 +46,12 @@ struct MeshRepairSummary {
   bool changed() const;
 };
 
-// Repairs `mesh` in place. Fails (kInvalidArgument) only on invalid options or input indices out of
-// range; an input that cannot be made closed is repaired as far as possible and
+// Repairs `mesh` in place. Fails (kInvalidArgument) only on invalid options, input indices out of
+// range or a non-finite coordinate of a used vertex (kInternal if CGAL fails), leaving `mesh`
+// untouched; an input that cannot be made closed is repaired as far as possible and
 // summary->closed is false.
-Status repair_mesh(const MeshRepairOptions& options, TriangleMesh* mesh, MeshRepairSummary* summary);
+Status repair_mesh(const MeshRepairOptions& options, TriangleMesh* mesh,
+                   MeshRepairSummary* summary);
 
 nlohmann::json to_json(const MeshRepairSummary& summary);
 std::string to_text(const MeshRepairSummary& summary);

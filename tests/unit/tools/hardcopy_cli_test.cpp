@@ -14,14 +14,14 @@
 namespace hc::testing {
 namespace {
 
-struct Run {
+struct CliRun {
   int exit_code = -1;
   std::string out;
 };
 
-Run hardcopy(const std::string& args) {
+CliRun hardcopy(const std::string& args) {
   const std::string cmd = (bin_dir() / "hardcopy").string() + " --quiet " + args + " 2>/dev/null";
-  Run r;
+  CliRun r;
   FILE* p = ::popen(cmd.c_str(), "r");
   if (p == nullptr) return r;
   std::array<char, 4096> buf{};
@@ -35,7 +35,7 @@ Run hardcopy(const std::string& args) {
 std::string mesh(const std::string& name) { return shared_data("meshes/" + name).string(); }
 
 TEST(HardcopyCli, CheckPrintableMeshExitsZeroWithJsonKeys) {
-  const Run r = hardcopy("mesh check --json " + mesh("pinion.off"));
+  const CliRun r = hardcopy("mesh check --json " + mesh("pinion.off"));
   ASSERT_EQ(r.exit_code, 0) << r.out;
   const auto j = nlohmann::json::parse(r.out);
   for (const char* key : {"vertices", "triangles", "components", "boundary_edges",
@@ -48,7 +48,7 @@ TEST(HardcopyCli, CheckPrintableMeshExitsZeroWithJsonKeys) {
 }
 
 TEST(HardcopyCli, CheckOpenMeshExitsOne) {
-  const Run r = hardcopy("mesh check --json " + mesh("ChineseDragon-10kv.off"));
+  const CliRun r = hardcopy("mesh check --json " + mesh("ChineseDragon-10kv.off"));
   EXPECT_EQ(r.exit_code, 1);
   const auto j = nlohmann::json::parse(r.out);
   EXPECT_EQ(j["boundary_edges"], 6);  // MANIFEST.md: "NOT closed: 6 boundary edges"
@@ -79,7 +79,7 @@ TEST(HardcopyCli, ConvertToEveryFormatKeepsThePrintableVerdict) {
   for (const char* ext : {"stl", "obj", "ply", "ply.gz", "off"}) {
     const auto out = (dir / (std::string("bunny.") + ext)).string();
     ASSERT_EQ(hardcopy("mesh convert " + mesh("bunny.obj") + " " + out).exit_code, 0) << ext;
-    const Run r = hardcopy("mesh check --json " + out);
+    const CliRun r = hardcopy("mesh check --json " + out);
     EXPECT_EQ(r.exit_code, 0) << ext;
     EXPECT_EQ(nlohmann::json::parse(r.out)["triangles"], 3674) << ext;  // MANIFEST.md: bunny
   }
@@ -107,11 +107,11 @@ TEST(HardcopyCli, FailedConvertLeavesNoFile) {
 TEST(HardcopyCli, RepairFixesOrientationButNotHoles) {
   ScratchDir dir;
   const auto fixed = (dir / "blobby.stl").string();
-  const Run r = hardcopy("mesh repair --json " + mesh("blobby-shuffled.off") + " " + fixed);
+  const CliRun r = hardcopy("mesh repair --json " + mesh("blobby-shuffled.off") + " " + fixed);
   EXPECT_EQ(r.exit_code, 0) << r.out;
   EXPECT_EQ(hardcopy("mesh check " + fixed).exit_code, 0);
 
-  const Run open = hardcopy("mesh repair --json " + mesh("ChineseDragon-10kv.off") + " " +
+  const CliRun open = hardcopy("mesh repair --json " + mesh("ChineseDragon-10kv.off") + " " +
                             (dir / "dragon.stl").string());
   EXPECT_EQ(open.exit_code, 1) << "repair must not claim success on a mesh it could not close";
   EXPECT_EQ(nlohmann::json::parse(open.out)["closed"], false);
@@ -119,7 +119,7 @@ TEST(HardcopyCli, RepairFixesOrientationButNotHoles) {
 
 TEST(HardcopyCli, DemoWritesA3mfPerPrintableMesh) {
   ScratchDir dir;
-  const Run r = hardcopy("demo --json --data " + shared_data("meshes").string() + " --out " +
+  const CliRun r = hardcopy("demo --json --data " + shared_data("meshes").string() + " --out " +
                          dir.path().string());
   ASSERT_EQ(r.exit_code, 0) << r.out;
   const auto rows = nlohmann::json::parse(r.out);
