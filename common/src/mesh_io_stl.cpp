@@ -312,14 +312,13 @@ Result<TriangleMesh> parse_ascii(std::string_view bytes, std::string_view name,
   return mesh;
 }
 
-// Text STL is 7-bit with line breaks; binary STL's count and floats almost always contain control
-// bytes within the first kilobyte.
+// Text STL has no control characters other than whitespace (names may be UTF-8); binary STL has a
+// NUL in its triangle count (byte 83) below 2^24 triangles, and zeros in its floats.
 bool looks_like_text(std::string_view bytes) {
   const std::size_t n = std::min(bytes.size(), kTextSniffBytes);
   for (std::size_t i = 0; i < n; ++i) {
     const auto c = static_cast<unsigned char>(bytes[i]);
-    if (c < 0x20 && c != '\n' && c != '\r' && c != '\t' && c != '\f' && c != '\v') return false;
-    if (c >= 0x7f) return false;
+    if ((c < 0x20 && !is_space(static_cast<char>(c))) || c == 0x7f) return false;
   }
   return true;
 }

@@ -56,6 +56,7 @@ class ConsoleProgress final : public ProgressReporter {
         interval_ns_(std::chrono::nanoseconds(style_ == ProgressStyle::kBar ? options.bar_interval
                                                                             : options.line_interval)
                          .count()),
+        silent_below_ns_(std::chrono::nanoseconds(options.silent_below).count()),
         now_(options.now ? options.now : [] { return Clock::now(); }) {}
 
   ~ConsoleProgress() override {
@@ -70,10 +71,14 @@ class ConsoleProgress final : public ProgressReporter {
     // task; end() resumes it.
     if (!tasks_.empty()) tasks_.back().done = done_.load(std::memory_order_relaxed);
     const Clock::time_point now = now_();
-    tasks_.push_back({std::string(task), total, now, 0});
+    tasks_.push_back({std::string(task), total, now, 0, false});
     done_.store(0, std::memory_order_relaxed);
-    next_draw_ns_.store(ticks(now) + interval_ns_, std::memory_order_relaxed);
-    draw(now);
+    if (silent_below_ns_ > 0) {
+      next_draw_ns_.store(ticks(now) + silent_below_ns_, std::memory_order_relaxed);
+    } else {
+      next_draw_ns_.store(ticks(now) + interval_ns_, std::memory_order_relaxed);
+      draw(now);
+    }
   }
 
   void update(std::uint64_t done) override {
@@ -100,7 +105,9 @@ class ConsoleProgress final : public ProgressReporter {
     const Clock::time_point now = now_();
     const Task& task = tasks_.back();
     const std::uint64_t done = done_.load(std::memory_order_relaxed);
-    if (style_ != ProgressStyle::kQuiet) {
+    const bool worth_a_line =
+        task.drawn || ticks(now) - ticks(task.start) >= silent_below_ns_;
+    if (style_ != ProgressStyle::kQuiet && worth_a_line) {
       std::string line = task.total == 0 ? fmt::format("{}: done ({}) in {:.1f} s", task.name, done,
                                                        seconds(now - task.start))
                                          : fmt::format("{}: done ({}/{}) in {:.1f} s", task.name,
@@ -127,6 +134,7 @@ class ConsoleProgress final : public ProgressReporter {
     std::uint64_t total;
     Clock::time_point start;
     std::uint64_t done;  // saved while a nested task runs
+    bool drawn;          // something was printed for this task
   };
 
   static std::int64_t ticks(Clock::time_point t) {
@@ -137,7 +145,8 @@ class ConsoleProgress final : public ProgressReporter {
   // Caller holds mutex_.
   void draw(Clock::time_point now) {
     if (tasks_.empty() || style_ == ProgressStyle::kQuiet) return;
-    const Task& task = tasks_.back();
+    Task& task = tasks_.back();
+    task.drawn = true;
     const std::uint64_t done = done_.load(std::memory_order_relaxed);
     const double elapsed = seconds(now - task.start);
     if (style_ == ProgressStyle::kLines) {
@@ -176,6 +185,7 @@ class ConsoleProgress final : public ProgressReporter {
   const ProgressStyle style_;
   std::FILE* const out_;
   const std::int64_t interval_ns_;
+  const std::int64_t silent_below_ns_;
   const std::function<Clock::time_point()> now_;
 
   std::atomic<std::uint64_t> done_{0};

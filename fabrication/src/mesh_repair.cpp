@@ -131,32 +131,49 @@ OrientedKey oriented_key(const Triangle& t) {
   return {{t[m], std::min(x, y), std::max(x, y)}, x < y};
 }
 
-// Triangles of `after` (indices into after_vertices) whose orientation is opposite to the triangle
-// on the same three positions in `before` (indices into before_vertices, whose positions are
-// distinct). Triangles new to `after` are not counted.
+// Triangles of `after` whose orientation is opposite to a triangle on the same three positions in
+// `before` (whose indices are into before_vertices, with distinct positions). Copies of one
+// triangle are matched as multisets, so a kept pair of opposite copies counts no flip. Triangles
+// new to `after` are not counted.
 std::int64_t count_flipped(const MatrixX3d& before_vertices, const std::vector<Triangle>& before,
                            const TriangleMesh& after) {
   std::unordered_map<std::array<std::uint64_t, 3>, int, ArrayHash> index_of;
   index_of.reserve(static_cast<std::size_t>(before_vertices.rows()));
   for (Eigen::Index v = 0; v < before_vertices.rows(); ++v)
     index_of.emplace(position_key(before_vertices, v), static_cast<int>(v));
-  std::vector<OrientedKey> keys;
-  keys.reserve(before.size());
-  for (const Triangle& t : before) keys.push_back(oriented_key(t));
-  std::sort(keys.begin(), keys.end());
-  std::int64_t flipped = 0;
+  std::vector<OrientedKey> old_keys;
+  old_keys.reserve(before.size());
+  for (const Triangle& t : before) old_keys.push_back(oriented_key(t));
+  std::vector<OrientedKey> new_keys;
+  new_keys.reserve(static_cast<std::size_t>(after.num_triangles()));
   for (Eigen::Index t = 0; t < after.num_triangles(); ++t) {
     Triangle mapped{};
     bool known = true;
-    for (int k = 0; k < 3; ++k) {
+    for (int k = 0; k < 3 && known; ++k) {
       const auto it = index_of.find(position_key(after.vertices, after.triangles(t, k)));
-      known = known && it != index_of.end();
+      known = it != index_of.end();
       if (known) mapped[k] = it->second;
     }
-    if (!known) continue;
-    const OrientedKey key = oriented_key(mapped);
-    const auto it = std::lower_bound(keys.begin(), keys.end(), key);
-    if (it != keys.end() && it->sorted == key.sorted && it->even != key.even) ++flipped;
+    if (known) new_keys.push_back(oriented_key(mapped));
+  }
+  std::sort(old_keys.begin(), old_keys.end());
+  std::sort(new_keys.begin(), new_keys.end());
+  const auto count_even = [](auto first, auto last) {
+    return std::count_if(first, last, [](const OrientedKey& k) { return k.even; });
+  };
+  std::int64_t flipped = 0;
+  for (auto run = old_keys.begin(); run != old_keys.end();) {
+    const auto run_end = std::upper_bound(run, old_keys.end(), *run);
+    const auto [first, last] = std::equal_range(new_keys.begin(), new_keys.end(), *run);
+    const std::int64_t even_before = count_even(run, run_end);
+    const std::int64_t odd_before = (run_end - run) - even_before;
+    const std::int64_t even_after = count_even(first, last);
+    const std::int64_t odd_after = (last - first) - even_after;
+    const std::int64_t kept_even = std::min(even_before, even_after);
+    const std::int64_t kept_odd = std::min(odd_before, odd_after);
+    flipped += std::min(even_before - kept_even, odd_after - kept_odd) +
+               std::min(odd_before - kept_odd, even_after - kept_even);
+    run = run_end;
   }
   return flipped;
 }

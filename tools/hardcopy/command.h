@@ -3,7 +3,6 @@
 
 #include <CLI/CLI.hpp>
 #include <memory>
-#include <nlohmann/json.hpp>
 #include <string_view>
 
 #include "common/progress.h"
@@ -37,8 +36,5 @@ class Context {
 // Each family registers its subcommands; a subcommand's callback stores its exit code in *exit_code.
 void add_mesh_commands(CLI::App& app, const GlobalOptions& global, int* exit_code);
 void add_demo_command(CLI::App& app, const GlobalOptions& global, int* exit_code);
-
-// Prints one JSON document to stdout (2-space indent, trailing newline).
-void print_json(const nlohmann::json& j);
 
 }  // namespace hc::cli

@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "command.h"
+#include "common/json.h"
 #include "common/mesh_io.h"
 #include "fabrication/mesh_check.h"
 #include "fabrication/mesh_repair.h"
@@ -98,16 +99,16 @@ int run_demo(const GlobalOptions& global, const DemoArgs& args) {
   for (const auto& f : files) rows.push_back(process(f, args.out_dir, ctx.progress()));
 
   if (args.json) {
-    nlohmann::json j = nlohmann::json::array();
+    Json j = Json::array();
     for (const auto& r : rows) {
-      nlohmann::json o = fabrication::to_json(r.report);
+      Json o = fabrication::to_json(r.report);
       o["file"] = r.file;
       o["status"] = r.status;
       o["output"] = r.output;
       o["time_s"] = r.seconds;
       j.push_back(std::move(o));
     }
-    print_json(j);
+    (void)hc::print_json(j);
   } else {
     fmt::print("{:<24} {:>9} {:>5} {:>8} {:>8} {:>6} {:>14}  {:<14} {}\n", "mesh", "triangles",
                "comp", "boundary", "misorie", "genus", "volume", "verdict", "output");

@@ -2,7 +2,6 @@
 #include <fmt/format.h>
 
 #include <CLI/CLI.hpp>
-#include <cstdio>
 
 #include "command.h"
 #include "common/log.h"
@@ -18,12 +17,6 @@ int Context::fail(std::string_view command, const Status& status) const {
     case StatusCode::kFailedPrecondition: return kExitNo;
     default: return kExitBadInput;
   }
-}
-
-void print_json(const nlohmann::json& j) {
-  const std::string text = j.dump(2, ' ', false, nlohmann::json::error_handler_t::replace);
-  std::fwrite(text.data(), 1, text.size(), stdout);
-  std::fputc('\n', stdout);
 }
 
 }  // namespace hc::cli

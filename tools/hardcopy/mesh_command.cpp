@@ -4,6 +4,7 @@
 #include <string>
 
 #include "command.h"
+#include "common/json.h"
 #include "common/mesh_io.h"
 #include "common/units.h"
 #include "fabrication/mesh_check.h"
@@ -28,9 +29,9 @@ int run_check(const GlobalOptions& global, const CheckArgs& args) {
   Result<fabrication::MeshCheckReport> report = fabrication::check_mesh(*mesh, options);
   if (!report.ok()) return ctx.fail("mesh check", report.status().with_context(args.input));
   if (args.json) {
-    nlohmann::json j = fabrication::to_json(*report);
+    Json j = fabrication::to_json(*report);
     j["file"] = args.input;
-    print_json(j);
+    (void)hc::print_json(j);
   } else {
     fmt::print("{}\n{}", args.input, fabrication::to_text(*report));
   }
@@ -68,7 +69,7 @@ int run_convert(const GlobalOptions& global, const ConvertArgs& args) {
   if (Status s = write_mesh(args.output, *mesh, options); !s.ok())
     return ctx.fail("mesh convert", s);
   if (args.json) {
-    print_json({{"input", args.input},
+    (void)hc::print_json({{"input", args.input},
                 {"output", args.output},
                 {"vertices", mesh->num_vertices()},
                 {"triangles", mesh->num_triangles()}});
@@ -102,10 +103,10 @@ int run_repair(const GlobalOptions& global, const RepairArgs& args) {
   // and the exit code and the report say plainly that it is not printable.
   if (Status s = write_mesh(args.output, *mesh); !s.ok()) return ctx.fail("mesh repair", s);
   if (args.json) {
-    nlohmann::json j = fabrication::to_json(summary);
+    Json j = fabrication::to_json(summary);
     j["input"] = args.input;
     j["output"] = args.output;
-    print_json(j);
+    (void)hc::print_json(j);
   } else {
     fmt::print("{} -> {}\n{}", args.input, args.output, fabrication::to_text(summary));
     if (!summary.closed)

@@ -73,6 +73,7 @@ inline constexpr std::size_t kMaxConfigBytes = std::size_t{16} << 20;  // 16 MiB
 // A parsed YAML document and the name its messages use (the path, or what the caller chose).
 class Config {
  public:
+  // The file name (or the caller's name for the text) that starts every message.
   const std::string& name() const;
 
  private:
@@ -105,6 +106,7 @@ struct Bounds {
   static Bounds at_most(double v) { return {std::nullopt, v, false, false}; }      // <= v
   static Bounds between(double lo, double hi) { return {lo, hi, false, false}; }   // [lo, hi]
 
+  // True when `v` satisfies every limit; NaN never does.
   bool contains(double v) const;
   // "a number > 0", "an integer in [1, 16]" (`what` is "a number" or "an integer").
   std::string describe(std::string_view what) const;

@@ -40,6 +40,10 @@ struct ConsoleProgressOptions {
   std::chrono::milliseconds bar_interval{100};
   // Shortest time between two plain lines, so CI logs stay readable.
   std::chrono::milliseconds line_interval{5000};
+  // Tasks that finish sooner than this print nothing at all (no bar, no lines), so that quick steps
+  // of a batch do not flood the log; longer ones show their first output after this delay.
+  // Zero draws at once.
+  std::chrono::milliseconds silent_below{1000};
   // The clock used for throttling, rates and ETAs; empty means std::chrono::steady_clock::now.
   // Tests substitute a manual clock.
   std::function<std::chrono::steady_clock::time_point()> now;
@@ -53,7 +57,9 @@ ProgressStyle resolve_progress_style(ProgressStyle style, std::FILE* out);
 std::unique_ptr<ProgressReporter> make_console_progress(ProgressStyle style = ProgressStyle::kAuto);
 // Reports to options.out. Bar: one line redrawn in place with percent, count, rate and ETA. Lines:
 // "task: 40% (400/1000), 1.2 s" at begin, at most every line_interval, and a closing line at end.
-// An unknown total (0) shows the count only. Writes never fail loudly: a closed stream is ignored.
+// An unknown total (0) shows the count only. A task begun inside another (a library step inside a
+// tool's task) suspends the outer one until it ends. update() costs a clock read and two atomics
+// unless it is time to draw. Writes never fail loudly: a closed stream is ignored.
 std::unique_ptr<ProgressReporter> make_console_progress(const ConsoleProgressOptions& options);
 
 // A reporter that does nothing (what libraries use when the caller passes none).

@@ -283,6 +283,19 @@ void remove_collinear_faces(SurfaceMesh* sm, SoupRepairStats* stats) {
   stats->collinear_after = count_collinear_faces(*sm);
 }
 
+void to_soup(SurfaceMesh* sm, std::vector<Point>* points, std::vector<Polygon>* polygons) {
+  sm->collect_garbage();
+  points->clear();
+  for (auto v : sm->vertices()) points->push_back(sm->point(v));
+  polygons->clear();
+  for (FaceIndex f : sm->faces()) {
+    Polygon polygon{};
+    int k = 0;
+    for (auto v : CGAL::vertices_around_face(sm->halfedge(f), *sm)) polygon[k++] = v.idx();
+    polygons->push_back(polygon);
+  }
+}
+
 void export_mesh(SurfaceMesh& sm, TriangleMesh* out) {
   sm.collect_garbage();
   out->vertices.resize(static_cast<Eigen::Index>(sm.number_of_vertices()), 3);
@@ -357,6 +370,16 @@ Status repair_triangle_soup(const SoupRepairOptions& options, TriangleMesh* soup
     SurfaceMesh sm;
     PMP::polygon_soup_to_polygon_mesh(points, polygons, sm);
     if (options.remove_collinear) remove_collinear_faces(&sm, stats);
+    if (options.orient && stats->collinear_after < stats->collinear_before) {
+      // Flips and collapses can pinch the surface into a non-manifold vertex; orienting the soup
+      // again splits it now, rather than leaving it for the next repair to find.
+      to_soup(&sm, &points, &polygons);
+      const std::size_t before = points.size();
+      PMP::orient_polygon_soup(points, polygons);
+      stats->split_vertices += static_cast<std::int64_t>(points.size() - before);
+      sm.clear();
+      PMP::polygon_soup_to_polygon_mesh(points, polygons, sm);
+    }
     // Isolated vertices have no halfedge, which volume_connected_components does not expect.
     for (auto v : sm.vertices())
       if (sm.is_isolated(v)) sm.remove_vertex(v);

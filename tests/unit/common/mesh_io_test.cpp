@@ -299,6 +299,14 @@ TEST(MeshIoStl, ReadsAsciiAndWeldsSharedCorners) {
   EXPECT_EQ(soup->num_vertices(), 6);
 }
 
+TEST(MeshIoStl, ReadsUtf8SolidNames) {
+  std::string text(kAsciiStlTwoFacets);
+  text.replace(0, std::string_view("solid square").size(), "solid W\xc3\xbcrfel \xe2\x80\x94 1");
+  auto m = parse(text, MeshFormat::kStl);
+  ASSERT_TRUE(m.ok()) << m.status().to_string();
+  EXPECT_EQ(m->num_triangles(), 2);
+}
+
 TEST(MeshIoStl, ReadsSeveralSolidsAndCrLf) {
   std::string two(kAsciiStlTwoFacets);
   two += kAsciiStlTwoFacets;

@@ -87,6 +87,7 @@ std::unique_ptr<ProgressReporter> make_reporter(ProgressStyle style, const Captu
   options.style = style;
   options.out = out.get();
   options.now = [&clock] { return clock.now; };
+  options.silent_below = std::chrono::milliseconds(0);  // these tests read every line
   return make_console_progress(options);
 }
 
@@ -316,6 +317,7 @@ TEST(ConsoleProgress, ConcurrentUpdatesDrawWholeBars) {
   options.style = ProgressStyle::kBar;
   options.out = out.get();
   options.bar_interval = std::chrono::milliseconds(0);  // draw as often as threads allow
+  options.silent_below = std::chrono::milliseconds(0);
   auto progress = make_console_progress(options);
   progress->begin("race", 40000);
   std::vector<std::thread> threads;
@@ -370,6 +372,39 @@ TEST(ProgressStyle, AutoOnATerminalIsBarUnlessCiIsSet) {
   }
   std::fclose(terminal);
   ::close(master);
+}
+
+}  // namespace
+}  // namespace hc
+
+namespace hc {
+namespace {
+
+TEST(ConsoleProgress, ShortTasksPrintNothingLongOnesAfterTheDelay) {
+  CapturedStream out;
+  ManualClock clock;
+  ConsoleProgressOptions options;
+  options.style = ProgressStyle::kLines;
+  options.out = out.get();
+  options.now = [&clock] { return clock.now; };
+  options.silent_below = std::chrono::milliseconds(1000);
+  auto progress = make_console_progress(options);
+
+  progress->begin("quick", 10);
+  clock.advance(std::chrono::milliseconds(300));
+  progress->update(10);
+  progress->end("fine");
+  EXPECT_EQ(out.text(), "") << "a task under silent_below prints nothing";
+
+  progress->begin("slow", 10);
+  clock.advance(std::chrono::milliseconds(999));
+  progress->update(3);
+  EXPECT_EQ(out.text(), "");
+  clock.advance(std::chrono::milliseconds(1));
+  progress->update(4);
+  clock.advance(std::chrono::milliseconds(1000));
+  progress->end("");
+  EXPECT_EQ(out.text(), "slow: 40% (4/10), 1.0 s\nslow: done (4/10) in 2.0 s\n");
 }
 
 }  // namespace
