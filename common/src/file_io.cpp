@@ -2,10 +2,12 @@
 
 #include <fcntl.h>
 #include <fmt/format.h>
+#include <sys/mman.h>
 #include <sys/stat.h>
 #include <unistd.h>
 
 #include <cerrno>
+#include <cstdint>
 #include <cstring>
 #include <random>
 
@@ -45,12 +47,15 @@ Result<std::string> read_file(const std::filesystem::path& path, std::size_t max
   struct stat st {};
   if (::fstat(fd.get(), &st) != 0)
     return io_error(fmt::format("{}: cannot stat: {}", path.string(), errno_text()));
-  if (S_ISDIR(st.st_mode)) return invalid_argument(fmt::format("{}: is a directory", path.string()));
+  if (S_ISDIR(st.st_mode))
+    return invalid_argument(fmt::format("{}: is a directory", path.string()));
   const auto size = static_cast<std::size_t>(st.st_size);
   if (size > max_bytes)
-    return invalid_argument(
-        fmt::format("{}: file is {} bytes, more than the limit of {}", path.string(), size, max_bytes));
+    return invalid_argument(fmt::format("{}: file is {} bytes, more than the limit of {}",
+                                        path.string(), size, max_bytes));
   std::string data;
+  data.reserve(size);
+  advise_huge_pages(data.data(), size);
   data.resize(size);
   std::size_t got = 0;
   while (got < size) {
@@ -111,6 +116,19 @@ Status write_file_atomic(const std::filesystem::path& path, std::string_view byt
       return io_error(fmt::format("{}: close failed: {}", path.string(), errno_text()));
     return {};
   });
+}
+
+void advise_huge_pages(void* p, std::size_t bytes) {
+#if defined(__linux__) && defined(MADV_HUGEPAGE)
+  constexpr std::uintptr_t kHugePage = std::uintptr_t{2} << 20;
+  const auto begin = reinterpret_cast<std::uintptr_t>(p);
+  const std::uintptr_t first = (begin + kHugePage - 1) & ~(kHugePage - 1);
+  const std::uintptr_t last = (begin + bytes) & ~(kHugePage - 1);
+  if (last > first) ::madvise(reinterpret_cast<void*>(first), last - first, MADV_HUGEPAGE);
+#else
+  (void)p;
+  (void)bytes;
+#endif
 }
 
 }  // namespace hc

@@ -4,7 +4,6 @@
 
 #include <fmt/format.h>
 #if defined(__linux__)
-#include <sys/mman.h>
 #endif
 
 #include <algorithm>
@@ -31,20 +30,6 @@ std::string quote(std::string_view token) {
   if (token.size() > kMaxShown) out += "...";
   out.push_back('\'');
   return out;
-}
-
-void advise_huge_pages(void* p, std::size_t bytes) {
-#if defined(__linux__) && defined(MADV_HUGEPAGE)
-  constexpr std::uintptr_t kHugePage = std::uintptr_t{2} << 20;
-  const auto begin = reinterpret_cast<std::uintptr_t>(p);
-  const std::uintptr_t first = (begin + kHugePage - 1) & ~(kHugePage - 1);
-  const std::uintptr_t last = (begin + bytes) & ~(kHugePage - 1);
-  if (last > first)
-    ::madvise(reinterpret_cast<void*>(first), last - first, MADV_HUGEPAGE);  // best effort
-#else
-  (void)p;
-  (void)bytes;
-#endif
 }
 
 Status check_writable(const TriangleMesh& mesh, std::string_view what) {

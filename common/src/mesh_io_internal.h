@@ -20,6 +20,7 @@
 #include <type_traits>
 #include <vector>
 
+#include "common/file_io.h"
 #include "common/mesh.h"
 #include "common/mesh_io.h"
 #include "common/status.h"
@@ -206,12 +207,6 @@ inline constexpr std::size_t kMaxIndexable =
 inline std::size_t element_limit(const MeshReadOptions& options) {
   return std::min(options.max_elements, kMaxIndexable);
 }
-
-// Asks the kernel to back [p, p + bytes) with transparent huge pages before it is first written.
-// On virtual machines each 4 KiB first-touch page fault costs microseconds, which for a large mesh
-// costs more than parsing it; 2 MiB pages cut the fault count 512-fold. Best effort: a no-op where
-// unsupported, and only whole 2 MiB-aligned blocks inside the range are affected.
-void advise_huge_pages(void* p, std::size_t bytes);
 
 // Rows of a #N by 3 matrix appended one at a time straight into the matrix's own storage, so the
 // result needs no copy. Grows by doubling.

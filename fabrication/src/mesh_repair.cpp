@@ -284,9 +284,12 @@ Status repair_mesh(const MeshRepairOptions& options, TriangleMesh* mesh,
       cgal_ops::SoupRepairOptions soup_options;
       soup_options.orient = options.orient;
       soup_options.remove_collinear = options.remove_degenerate_triangles;
+      soup_options.remove_duplicates = options.remove_duplicate_triangles;
       cgal_ops::SoupRepairStats stats;
       HC_RETURN_IF_ERROR(cgal_ops::repair_triangle_soup(soup_options, &soup, &stats));
-      summary->removed_degenerate_triangles += stats.collinear_before - stats.collinear_after;
+      summary->removed_degenerate_triangles +=
+          stats.collinear_before - stats.collinear_after + stats.degenerate_removed_later;
+      summary->removed_duplicate_triangles += stats.duplicates_removed_later;
       summary->split_non_manifold_vertices = stats.split_vertices;
       summary->flipped_triangles = count_flipped(soup_positions, triangles, soup);
     }

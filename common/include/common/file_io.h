@@ -27,4 +27,9 @@ Status write_file_atomic(const std::filesystem::path& path, std::string_view byt
 Status write_file_atomic(const std::filesystem::path& path,
                          const std::function<Status(const std::filesystem::path& tmp)>& produce);
 
+// Best effort: asks the kernel to back the 2 MiB-aligned interior of a large buffer with
+// transparent huge pages. On virtual machines first-touch page faults dominate reading big files
+// (measured: ~190 ms of the 222 ms to read a 50 MB STL); huge pages cut that several-fold.
+void advise_huge_pages(void* p, std::size_t bytes);
+
 }  // namespace hc

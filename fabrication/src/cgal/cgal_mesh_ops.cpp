@@ -7,6 +7,7 @@
 #include <CGAL/Polygon_mesh_processing/orientation.h>
 #include <CGAL/Polygon_mesh_processing/polygon_soup_to_polygon_mesh.h>
 #include <CGAL/Polygon_mesh_processing/repair_degeneracies.h>
+#include <CGAL/Polygon_mesh_processing/repair_polygon_soup.h>
 #include <CGAL/Polygon_mesh_processing/self_intersections.h>
 #include <CGAL/Surface_mesh.h>
 #include <CGAL/boost/graph/helpers.h>
@@ -371,12 +372,22 @@ Status repair_triangle_soup(const SoupRepairOptions& options, TriangleMesh* soup
     PMP::polygon_soup_to_polygon_mesh(points, polygons, sm);
     if (options.remove_collinear) remove_collinear_faces(&sm, stats);
     if (options.orient && stats->collinear_after < stats->collinear_before) {
-      // Flips and collapses can pinch the surface into a non-manifold vertex; orienting the soup
-      // again splits it now, rather than leaving it for the next repair to find.
+      // The removal changes the topology the first orientation worked on: it can rejoin sheets
+      // that were split apart (a collinear triangle on a non-manifold edge) or pinch the surface
+      // into a new non-manifold vertex. Merge the copies and orient afresh, so that what is split
+      // is what must be, and a second repair finds nothing to do.
+      // Flips can also recreate a triangle that exists already.
       to_soup(&sm, &points, &polygons);
+      PMP::merge_duplicate_points_in_polygon_soup(points, polygons);
+      stats->degenerate_removed_later = static_cast<std::int64_t>(std::erase_if(
+          polygons, [](const Polygon& q) { return q[0] == q[1] || q[1] == q[2] || q[2] == q[0]; }));
+      if (options.remove_duplicates) {
+        stats->duplicates_removed_later = static_cast<std::int64_t>(
+            PMP::merge_duplicate_polygons_in_polygon_soup(points, polygons));
+      }
       const std::size_t before = points.size();
       PMP::orient_polygon_soup(points, polygons);
-      stats->split_vertices += static_cast<std::int64_t>(points.size() - before);
+      stats->split_vertices = static_cast<std::int64_t>(points.size() - before);
       sm.clear();
       PMP::polygon_soup_to_polygon_mesh(points, polygons, sm);
     }

@@ -49,14 +49,18 @@ Result<SelfIntersectionCount> count_self_intersecting_pairs(const TriangleMesh& 
                                                             const SelfIntersectionQuery& query);
 
 struct SoupRepairOptions {
-  bool orient = true;            // consistent orientation, then outward (bounding a volume)
-  bool remove_collinear = true;  // remove collinear triangles without opening the surface
+  bool orient = true;             // consistent orientation, then outward (bounding a volume)
+  bool remove_collinear = true;   // remove collinear triangles without opening the surface
+  bool remove_duplicates = true;  // remove triangles that removing collinear ones duplicated
 };
 
 struct SoupRepairStats {
-  std::int64_t split_vertices = 0;       // points orient_polygon_soup duplicated
-  std::int64_t collinear_before = 0;     // collinear triangles before removal
-  std::int64_t collinear_after = 0;      // ... and after (CGAL may not manage all of them)
+  std::int64_t split_vertices = 0;    // points orient_polygon_soup duplicated
+  std::int64_t collinear_before = 0;  // collinear triangles before removal
+  std::int64_t collinear_after = 0;   // ... and after (CGAL may not manage all of them)
+  // Triangles that removing collinear ones left with a repeated corner, or duplicated.
+  std::int64_t degenerate_removed_later = 0;
+  std::int64_t duplicates_removed_later = 0;
   bool polygon_mesh = false;             // the soup became a CGAL::Surface_mesh
   bool bounds_volume = false;            // oriented by orient_to_bound_a_volume (nesting respected)
   std::int64_t reversed_components = 0;  // closed components turned outward one by one instead
@@ -68,7 +72,8 @@ struct SoupRepairStats {
 // are turned outward (orient_to_bound_a_volume when the result is closed and free of
 // self-intersections, otherwise each closed component to positive volume). With
 // options.remove_collinear, collinear triangles are removed by CGAL's edge flips and collapses,
-// which keep a closed surface closed. Vertex positions are never moved; vertices may be appended
+// which keep a closed surface closed (duplicates these create go with options.remove_duplicates,
+// and the orientation is then redone). Vertex positions are never moved; vertices may be appended
 // (duplicates) or left unreferenced.
 Status repair_triangle_soup(const SoupRepairOptions& options, TriangleMesh* soup,
                             SoupRepairStats* stats);

@@ -555,6 +555,81 @@ TEST(MeshRepair, RejectsBadInput) {
   EXPECT_EQ(m.triangles(0, 0), 99);  // untouched on failure
 }
 
+TEST(MeshRepair, DropsVertexUsedOnlyByADroppedTriangle) {
+  TriangleMesh m = tetrahedron();
+  m.vertices.conservativeResize(5, 3);
+  m.vertices.row(4) << 2, 2, 2;
+  m.triangles.conservativeResize(5, 3);
+  m.triangles.row(4) << 0, 4, 4;  // repeated corner: dropped, and vertex 4 with it
+  const MeshRepairSummary s = repair(&m);
+  EXPECT_EQ(s.removed_degenerate_triangles, 1);
+  EXPECT_EQ(s.removed_unreferenced_vertices, 1);
+  EXPECT_EQ(m.num_vertices(), 4);
+  EXPECT_TRUE(s.printable);
+  EXPECT_NEAR(s.after.volume, 1.0 / 6.0, 1e-15);
+}
+
+TEST(MeshRepair, KeptOppositeCopiesAreNotFlips) {
+  // A triangle and its reverse: a closed two-sided sheet of zero volume.
+  TriangleMesh m;
+  m.vertices.resize(3, 3);
+  m.vertices << 0, 0, 0, 1, 0, 0, 0, 1, 0;
+  m.triangles.resize(2, 3);
+  m.triangles << 0, 1, 2, 1, 0, 2;
+  MeshRepairOptions keep;
+  keep.remove_duplicate_triangles = false;
+  const MeshRepairSummary s = repair(&m, keep);
+  EXPECT_EQ(s.flipped_triangles, 0);
+  EXPECT_EQ(m.num_triangles(), 2);
+  EXPECT_TRUE(s.closed);
+  EXPECT_FALSE(s.printable);  // zero volume
+  EXPECT_FALSE(repair(&m, keep).changed());
+}
+
+// Inputs on which fuzz_mesh_check once found a second repair still changing something: removing
+// a collinear triangle rejoined sheets the first orientation had split, pinched the surface into
+// a new non-manifold vertex, or recreated an existing triangle. Corners on a half-unit grid.
+TEST(MeshRepair, ReachesItsFixedPointInOnePass) {
+  const auto mesh = [](std::vector<Eigen::RowVector3d> v, std::vector<Eigen::RowVector3i> t) {
+    TriangleMesh m;
+    m.vertices.resize(static_cast<Eigen::Index>(v.size()), 3);
+    for (std::size_t i = 0; i < v.size(); ++i) m.vertices.row(static_cast<Eigen::Index>(i)) = v[i];
+    m.triangles.resize(static_cast<Eigen::Index>(t.size()), 3);
+    for (std::size_t i = 0; i < t.size(); ++i) m.triangles.row(static_cast<Eigen::Index>(i)) = t[i];
+    return m;
+  };
+  const std::vector<TriangleMesh> cases = {
+      mesh({{-2, 1, -2}, {0, -2, -2}, {-2, -2, -2}, {-2, -1, -0.5}, {-1, -0.5, -2}},
+           {{0, 4, 1}, {4, 2, 1}, {3, 1, 0}}),
+      mesh({{-2, -2, 1}, {-2, -2, -1.5}, {-2, -2, 1.5}, {1.5, -1, -1.5}, {-0.5, -0.5, -0.5}},
+           {{0, 1, 4}, {2, 0, 1}, {3, 4, 2}, {0, 0, 4}}),
+      mesh({{-2, 1, -2}, {-2, -2, -1.5}, {-2, -2, -2}, {-2, -0.5, -2}, {-1.5, -1.5, -0.5}},
+           {{3, 4, 0}, {2, 3, 4}, {2, 3, 0}, {1, 3, 2}}),
+      mesh({{-2, 1, -2}, {-2, -2, -1.5}, {-2, -2, -2}, {-2, -0.5, -2}, {-1.5, -1.5, -0.5}},
+           {{1, 4, 0}, {2, 3, 4}, {0, 1, 2}, {3, 0, 1}, {0, 2, 3}}),
+  };
+  for (std::size_t i = 0; i < cases.size(); ++i) {
+    SCOPED_TRACE(i);
+    TriangleMesh m = cases[i];
+    const MeshRepairSummary first = repair(&m);
+    EXPECT_TRUE(first.changed());
+    const TriangleMesh once = m;
+    const MeshRepairSummary second = repair(&m);
+    EXPECT_EQ(second.removed_degenerate_triangles, 0);
+    EXPECT_EQ(second.removed_duplicate_triangles, 0);
+    EXPECT_EQ(second.flipped_triangles, 0);
+    // Welding merges the copies of a split vertex, which orientation splits again.
+    EXPECT_EQ(second.merged_vertices, second.split_non_manifold_vertices);
+    EXPECT_EQ(m.num_triangles(), once.num_triangles());
+    EXPECT_EQ(m.num_vertices(), once.num_vertices());
+    nlohmann::json before = to_json(first.after);
+    nlohmann::json after = to_json(second.after);
+    before.erase("stage_seconds");
+    after.erase("stage_seconds");
+    EXPECT_EQ(after, before);
+  }
+}
+
 TEST(MeshRepair, JsonAndText) {
   TriangleMesh m = unit_cube();
   flip(&m, 2);
