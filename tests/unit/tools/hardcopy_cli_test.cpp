@@ -127,6 +127,12 @@ TEST(HardcopyCli, DemoWritesA3mfPerPrintableMesh) {
   for (const auto& row : rows) {
     if (row["file"] == "ChineseDragon-10kv.off") {
       EXPECT_EQ(row["status"], "not printable");  // open: repair does not fill holes
+    } else if (row["file"] == "candleStand.stl") {
+      // Closed, but 10 pairs of triangles intersect (CGAL's exact predicates, confirmed with CGAL's
+      // own STL reader; the 6-digit ASCII coordinates fold one sliver over its neighbours), and
+      // repair does not resolve self-intersections.
+      EXPECT_EQ(row["status"], "not printable");
+      EXPECT_EQ(row["self_intersecting_pairs"], 10);
     } else {
       EXPECT_TRUE(row["status"] == "printable" || row["status"] == "repaired") << row["file"];
       EXPECT_TRUE(std::filesystem::exists(row["output"].get<std::string>())) << row["file"];
