@@ -280,6 +280,34 @@ inline void append_int(std::string& out, long long v) {
   out.append(buf, r.ptr);
 }
 
+// Appends the vertex and triangle lines shared by the text formats: "<vertex_prefix>x y z" per
+// vertex, then "<face_prefix>a b c" per triangle with indices offset by `index_base` (OBJ counts
+// from 1, OFF and PLY from 0).
+inline void append_text_rows(std::string& out, const TriangleMesh& mesh,
+                             std::string_view vertex_prefix, std::string_view face_prefix,
+                             long long index_base) {
+  out.reserve(out.size() + static_cast<std::size_t>(mesh.num_vertices()) * 60 +
+              static_cast<std::size_t>(mesh.num_triangles()) * 24);
+  for (Eigen::Index i = 0; i < mesh.num_vertices(); ++i) {
+    out += vertex_prefix;
+    append_double(out, mesh.vertices(i, 0));
+    out += ' ';
+    append_double(out, mesh.vertices(i, 1));
+    out += ' ';
+    append_double(out, mesh.vertices(i, 2));
+    out += '\n';
+  }
+  for (Eigen::Index t = 0; t < mesh.num_triangles(); ++t) {
+    out += face_prefix;
+    append_int(out, mesh.triangles(t, 0) + index_base);
+    out += ' ';
+    append_int(out, mesh.triangles(t, 1) + index_base);
+    out += ' ';
+    append_int(out, mesh.triangles(t, 2) + index_base);
+    out += '\n';
+  }
+}
+
 // Little-endian stores for the binary writers.
 template <typename T>
 inline void store_le(char* dst, T v) {

@@ -131,28 +131,8 @@ Result<TriangleMesh> parse_obj(std::string_view bytes, std::string_view name,
 }
 
 std::string format_obj(const TriangleMesh& mesh) {
-  std::string out;
-  out.reserve(static_cast<std::size_t>(mesh.num_vertices()) * 40 +
-              static_cast<std::size_t>(mesh.num_triangles()) * 24 + 64);
-  out += "# written by Hardcopy\n";
-  for (Eigen::Index i = 0; i < mesh.num_vertices(); ++i) {
-    out += "v ";
-    append_double(out, mesh.vertices(i, 0));
-    out += ' ';
-    append_double(out, mesh.vertices(i, 1));
-    out += ' ';
-    append_double(out, mesh.vertices(i, 2));
-    out += '\n';
-  }
-  for (Eigen::Index t = 0; t < mesh.num_triangles(); ++t) {
-    out += "f ";
-    append_int(out, mesh.triangles(t, 0) + 1LL);
-    out += ' ';
-    append_int(out, mesh.triangles(t, 1) + 1LL);
-    out += ' ';
-    append_int(out, mesh.triangles(t, 2) + 1LL);
-    out += '\n';
-  }
+  std::string out = "# written by Hardcopy\n";
+  append_text_rows(out, mesh, "v ", "f ", 1);
   return out;
 }
 

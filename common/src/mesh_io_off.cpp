@@ -166,31 +166,12 @@ Result<TriangleMesh> parse_off(std::string_view bytes, std::string_view name,
 }
 
 std::string format_off(const TriangleMesh& mesh) {
-  std::string out;
-  out.reserve(static_cast<std::size_t>(mesh.num_vertices()) * 40 +
-              static_cast<std::size_t>(mesh.num_triangles()) * 24 + 64);
-  out += "OFF\n";
+  std::string out = "OFF\n";
   append_int(out, mesh.num_vertices());
   out += ' ';
   append_int(out, mesh.num_triangles());
   out += " 0\n";
-  for (Eigen::Index i = 0; i < mesh.num_vertices(); ++i) {
-    append_double(out, mesh.vertices(i, 0));
-    out += ' ';
-    append_double(out, mesh.vertices(i, 1));
-    out += ' ';
-    append_double(out, mesh.vertices(i, 2));
-    out += '\n';
-  }
-  for (Eigen::Index t = 0; t < mesh.num_triangles(); ++t) {
-    out += "3 ";
-    append_int(out, mesh.triangles(t, 0));
-    out += ' ';
-    append_int(out, mesh.triangles(t, 1));
-    out += ' ';
-    append_int(out, mesh.triangles(t, 2));
-    out += '\n';
-  }
+  append_text_rows(out, mesh, "", "3 ", 0);
   return out;
 }
 

@@ -692,24 +692,7 @@ std::string format_ply(const TriangleMesh& mesh, bool binary) {
     }
     return out;
   }
-  out.reserve(out.size() + nv * 60 + nt * 24);
-  for (Eigen::Index i = 0; i < mesh.num_vertices(); ++i) {
-    append_double(out, mesh.vertices(i, 0));
-    out += ' ';
-    append_double(out, mesh.vertices(i, 1));
-    out += ' ';
-    append_double(out, mesh.vertices(i, 2));
-    out += '\n';
-  }
-  for (Eigen::Index t = 0; t < mesh.num_triangles(); ++t) {
-    out += "3 ";
-    append_int(out, mesh.triangles(t, 0));
-    out += ' ';
-    append_int(out, mesh.triangles(t, 1));
-    out += ' ';
-    append_int(out, mesh.triangles(t, 2));
-    out += '\n';
-  }
+  append_text_rows(out, mesh, "", "3 ", 0);
   return out;
 }
 

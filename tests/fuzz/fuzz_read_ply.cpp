@@ -1,7 +1,6 @@
 // libFuzzer target: the PLY reader on arbitrary bytes (ascii, binary of either endianness, gzip by
 // magic), and on the same bytes gzip-compressed.
-// Beyond the sanitizers, it checks the contract of parse_mesh: an error is kInvalidArgument, and
-// an accepted mesh has finite coordinates and every index in range.
+// Beyond the sanitizers, it checks the contract of parse_mesh (see fuzz_mesh_reader.h).
 #include <cstddef>
 #include <cstdint>
 #include <cstdlib>
@@ -10,19 +9,9 @@
 
 #include <zlib.h>
 
-#include "common/mesh_io.h"
+#include "fuzz_mesh_reader.h"
 
 namespace {
-
-void check(const hc::Result<hc::TriangleMesh>& r) {
-  if (!r.ok()) {
-    if (r.status().code() != hc::StatusCode::kInvalidArgument) std::abort();
-    return;
-  }
-  const hc::TriangleMesh& m = *r;
-  if (!m.vertices.allFinite() || m.num_triangles() == 0) std::abort();
-  if (m.triangles.minCoeff() < 0 || m.triangles.maxCoeff() >= m.num_vertices()) std::abort();
-}
 
 // The input gzip-compressed, so the fuzzer's mutations of a PLY also reach the inflate path with a
 // valid stream (raw fuzz bytes starting 1f 8b only exercise zlib's error handling).
@@ -44,8 +33,8 @@ std::string gzip(std::string_view plain) {
 }  // namespace
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
-  const std::string_view bytes(reinterpret_cast<const char*>(data), size);
-  check(hc::parse_mesh(bytes, hc::MeshFormat::kPly, "fuzz.ply"));
-  check(hc::parse_mesh(gzip(bytes), hc::MeshFormat::kPly, "fuzz.ply.gz"));
+  hc::testing::fuzz_mesh_reader(data, size, hc::MeshFormat::kPly);
+  const std::string gz = gzip(hc::testing::fuzz_bytes(data, size));
+  hc::testing::check_parse_contract(hc::parse_mesh(gz, hc::MeshFormat::kPly, "fuzz.ply.gz"));
   return 0;
 }

@@ -361,15 +361,17 @@ TEST(Config, FailedSequenceLeavesTheOutputUntouched) {
   EXPECT_EQ(v, std::vector<double>{9.0});
 }
 
+// A recursive schema: every node may list child nodes.
+struct Tree {
+  std::vector<Tree> children;
+  Status read(ConfigNode node) {
+    node.optional("children", children);
+    return node.status();
+  }
+};
+
 TEST(Config, RecursiveAliasesStopAtTheDepthLimit) {
   // &a [*a] is a sequence that contains itself; a recursive schema must not follow it forever.
-  struct Tree {
-    std::vector<Tree> children;
-    Status read(ConfigNode node) {
-      node.optional("children", children);
-      return node.status();
-    }
-  };
   Result<Config> config = parse_config("&a {children: [*a]}\n", "tree.yaml");
   ASSERT_TRUE(config.ok()) << config.status().to_string();
   Tree tree;
@@ -405,13 +407,6 @@ TEST(Config, AliasBombsStopAtTheWorkLimit) {
 
 TEST(Config, RecursiveSchemaOverBranchingAliasesStops) {
   // A recursive schema over a self-referencing, branching document.
-  struct Tree {
-    std::vector<Tree> children;
-    Status read(ConfigNode node) {
-      node.optional("children", children);
-      return node.status();
-    }
-  };
   Result<Config> tree_config = parse_config("&a {children: [*a, *a, *a]}\n", "tree.yaml");
   ASSERT_TRUE(tree_config.ok());
   Tree tree;

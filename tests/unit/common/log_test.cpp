@@ -3,13 +3,13 @@
 #include <gtest/gtest.h>
 #include <spdlog/sinks/ostream_sink.h>
 
-#include <cstdlib>
-#include <optional>
 #include <regex>
 #include <sstream>
 #include <string>
 #include <thread>
 #include <vector>
+
+#include "scoped_env.h"
 
 namespace hc {
 namespace {
@@ -32,32 +32,6 @@ class LogTest : public ::testing::Test {
 
  private:
   std::ostringstream captured_;
-};
-
-// Sets an environment variable for one scope and restores the previous value.
-class ScopedEnv {
- public:
-  ScopedEnv(const char* name, const char* value) : name_(name) {
-    if (const char* old = std::getenv(name)) old_ = old;
-    if (value) {
-      ::setenv(name, value, 1);
-    } else {
-      ::unsetenv(name);
-    }
-  }
-  ~ScopedEnv() {
-    if (old_) {
-      ::setenv(name_, old_->c_str(), 1);
-    } else {
-      ::unsetenv(name_);
-    }
-  }
-  ScopedEnv(const ScopedEnv&) = delete;
-  ScopedEnv& operator=(const ScopedEnv&) = delete;
-
- private:
-  const char* name_;
-  std::optional<std::string> old_;
 };
 
 TEST_F(LogTest, SameLoggerPerModule) {
@@ -125,19 +99,19 @@ TEST_F(LogTest, BadEntryIsRejectedAndChangesNothing) {
 
 TEST_F(LogTest, ConfigureFromEnvironment) {
   {
-    ScopedEnv env(log::kEnvVar, "error,rig=debug");
+    testing::ScopedEnv env(log::kEnvVar, "error,rig=debug");
     ASSERT_TRUE(log::configure_from_env().ok());
     EXPECT_EQ(log::get("mesh")->level(), spdlog::level::err);
     EXPECT_EQ(log::get("rig")->level(), spdlog::level::debug);
   }
   {
     // Unset: the current levels stay.
-    ScopedEnv env(log::kEnvVar, nullptr);
+    testing::ScopedEnv env(log::kEnvVar, nullptr);
     ASSERT_TRUE(log::configure_from_env().ok());
     EXPECT_EQ(log::get("mesh")->level(), spdlog::level::err);
   }
   {
-    ScopedEnv env(log::kEnvVar, "rig=chatty");
+    testing::ScopedEnv env(log::kEnvVar, "rig=chatty");
     const Status s = log::configure_from_env();
     EXPECT_EQ(s.code(), StatusCode::kInvalidArgument);
     EXPECT_NE(s.message().find("'rig=chatty'"), std::string::npos);

@@ -2,7 +2,6 @@
 // every writer that keeps the counts and the signed volume.
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
-#include <Eigen/Geometry>
 
 #include <array>
 #include <cmath>
@@ -11,24 +10,14 @@
 #include <string>
 
 #include "common/mesh_io.h"
+#include "mesh_test_util.h"
 #include "test_data.h"
-
-#if HARDCOPY_HAVE_LIB3MF
-#include <Model/COM/NMR_DLLInterfaces.h>
-#endif
-#if defined(__SANITIZE_ADDRESS__)
-#define HC_TEST_HAS_LSAN 1
-#elif defined(__has_feature)
-#if __has_feature(address_sanitizer)
-#define HC_TEST_HAS_LSAN 1
-#endif
-#endif
-#if HC_TEST_HAS_LSAN
-#include <sanitizer/lsan_interface.h>
-#endif
 
 namespace hc {
 namespace {
+
+using testing::signed_volume;
+using testing::Volume;
 
 struct Expected {
   Eigen::Index vertices;
@@ -54,26 +43,6 @@ const std::map<std::string, Expected>& expected_counts() {
       {"pinion.off", {650, 1300}},     // header "650 1300 1950"
   };
   return kCounts;
-}
-
-// Sum of det[a b c] / 6 over triangles, and the sum of its terms' magnitudes: the scale that
-// rounding errors are relative to. They differ when terms cancel, as in blobby-shuffled.off whose
-// misoriented faces leave a net volume a thousandth of its size.
-struct Volume {
-  double signed_sum = 0;
-  double magnitude = 0;
-};
-Volume signed_volume(const TriangleMesh& m) {
-  Volume v;
-  for (Eigen::Index t = 0; t < m.num_triangles(); ++t) {
-    const Eigen::Vector3d a = m.vertices.row(m.triangles(t, 0)).transpose();
-    const Eigen::Vector3d b = m.vertices.row(m.triangles(t, 1)).transpose();
-    const Eigen::Vector3d c = m.vertices.row(m.triangles(t, 2)).transpose();
-    const double term = a.dot(b.cross(c)) / 6.0;
-    v.signed_sum += term;
-    v.magnitude += std::abs(term);
-  }
-  return v;
 }
 
 // What an STL of this mesh welds back to: distinct positions among referenced vertices, compared
@@ -165,15 +134,6 @@ TEST(MeshIoCorpusSet, EveryExpectedFileIsPresent) {
 }
 
 #if HARDCOPY_HAVE_LIB3MF
-// lib3mf 1.8.1's package reader never closes the zip entries it opens
-// (NMR::COpcPackageReader::openZIPEntryIndexed); keep LeakSanitizer from blaming the test for it.
-int read_3mf_file(NMR::PLib3MFModelReader* reader, const std::filesystem::path& path) {
-#if HC_TEST_HAS_LSAN
-  __lsan::ScopedDisabler third_party_leak;
-#endif
-  return NMR::lib3mf_reader_readfromfileutf8(reader, path.c_str());
-}
-
 // The whole corpus as one multi-part 3MF, read back by lib3mf: one object per mesh with its counts.
 TEST(MeshIoCorpusSet, Lib3mfReadsTheCorpusAsOnePackage) {
   std::vector<MeshPart> parts;
@@ -193,7 +153,7 @@ TEST(MeshIoCorpusSet, Lib3mfReadsTheCorpusAsOnePackage) {
   NMR::PLib3MFModelResourceIterator* it = nullptr;
   ASSERT_EQ(NMR::lib3mf_createmodel(&model), 0);
   ASSERT_EQ(NMR::lib3mf_model_queryreader(model, "3mf", &reader), 0);
-  ASSERT_EQ(read_3mf_file(reader, path), 0);
+  ASSERT_EQ(testing::read_3mf_file(reader, path), 0);
   ASSERT_EQ(NMR::lib3mf_model_getmeshobjects(model, &it), 0);
   std::size_t i = 0;
   BOOL has = 0;

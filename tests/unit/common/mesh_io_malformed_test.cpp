@@ -2,7 +2,6 @@
 // and what, and never crash, hang or allocate what a hostile header asks for.
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
-#include <zlib.h>
 
 #include <bit>
 #include <cstring>
@@ -11,10 +10,12 @@
 #include <vector>
 
 #include "common/mesh_io.h"
+#include "mesh_test_util.h"
 
 namespace hc {
 namespace {
 
+using testing::gzip;
 using ::testing::HasSubstr;
 
 Status parse_status(std::string_view bytes, MeshFormat format,
@@ -53,20 +54,6 @@ std::string binary_stl(std::uint32_t declared, const std::vector<std::array<floa
 }
 
 std::string fmt_byte(std::size_t offset) { return "byte " + std::to_string(offset) + ":"; }
-
-std::string gzip(std::string_view plain) {
-  z_stream zs{};
-  EXPECT_EQ(deflateInit2(&zs, 9, Z_DEFLATED, 15 + 16, 8, Z_DEFAULT_STRATEGY), Z_OK);
-  std::string gz(deflateBound(&zs, static_cast<uLong>(plain.size())) + 64, '\0');
-  zs.next_in = reinterpret_cast<Bytef*>(const_cast<char*>(plain.data()));
-  zs.avail_in = static_cast<uInt>(plain.size());
-  zs.next_out = reinterpret_cast<Bytef*>(gz.data());
-  zs.avail_out = static_cast<uInt>(gz.size());
-  EXPECT_EQ(deflate(&zs, Z_FINISH), Z_STREAM_END);
-  gz.resize(zs.total_out);
-  deflateEnd(&zs);
-  return gz;
-}
 
 // A mesh that came out of a reader must be usable: indices in range, coordinates finite.
 void expect_consistent(const TriangleMesh& m) {

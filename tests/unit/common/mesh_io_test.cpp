@@ -5,8 +5,6 @@
 #include <fmt/format.h>
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
-#include <zlib.h>
-#include <Eigen/Geometry>
 
 #include <bit>
 #include <cstring>
@@ -15,26 +13,15 @@
 #include <vector>
 
 #include "common/file_io.h"
+#include "mesh_test_util.h"
 #include "test_data.h"
-
-#if HARDCOPY_HAVE_LIB3MF
-#include <Model/COM/NMR_DLLInterfaces.h>
-#endif
-#if defined(__SANITIZE_ADDRESS__)
-#define HC_TEST_HAS_LSAN 1
-#elif defined(__has_feature)
-#if __has_feature(address_sanitizer)
-#define HC_TEST_HAS_LSAN 1
-#endif
-#endif
-#if HC_TEST_HAS_LSAN
-#include <sanitizer/lsan_interface.h>
-#endif
 
 namespace hc {
 namespace {
 
+using testing::gzip;
 using ::testing::HasSubstr;
+using testing::signed_volume;
 
 Result<TriangleMesh> parse(std::string_view text, MeshFormat format,
                            const MeshReadOptions& options = {}) {
@@ -55,18 +42,6 @@ TriangleMesh tetrahedron() {
       0, 3, 2,             //
       1, 2, 3;
   return m;
-}
-
-// Sum over triangles of det[a b c] / 6: the enclosed volume of a closed, outward-oriented mesh.
-double signed_volume(const TriangleMesh& m) {
-  double v = 0;
-  for (Eigen::Index t = 0; t < m.num_triangles(); ++t) {
-    const Eigen::Vector3d a = m.vertices.row(m.triangles(t, 0)).transpose();
-    const Eigen::Vector3d b = m.vertices.row(m.triangles(t, 1)).transpose();
-    const Eigen::Vector3d c = m.vertices.row(m.triangles(t, 2)).transpose();
-    v += a.dot(b.cross(c)) / 6.0;
-  }
-  return v;
 }
 
 // Builds binary files value by value in either byte order.
@@ -161,7 +136,7 @@ f 4 1 5 8
   ASSERT_TRUE(m.ok()) << m.status().to_string();
   EXPECT_EQ(m->num_vertices(), 8);
   EXPECT_EQ(m->num_triangles(), 12);
-  EXPECT_NEAR(signed_volume(*m), 1.0, 1e-15);  // analytic: unit cube
+  EXPECT_NEAR(signed_volume(*m).signed_sum, 1.0, 1e-15);  // analytic: unit cube
   // Fan from the first corner: (1 4 3 2) -> (0 3 2), (0 2 1).
   EXPECT_EQ(m->triangles.row(0), Eigen::RowVector3i(0, 3, 2));
   EXPECT_EQ(m->triangles.row(1), Eigen::RowVector3i(0, 2, 1));
@@ -231,7 +206,7 @@ OFF 4 4 6
   ASSERT_TRUE(m.ok()) << m.status().to_string();
   EXPECT_EQ(m->num_vertices(), 4);
   EXPECT_EQ(m->num_triangles(), 4);
-  EXPECT_NEAR(signed_volume(*m), 1.0 / 6.0, 1e-15);  // analytic: unit corner tetrahedron
+  EXPECT_NEAR(signed_volume(*m).signed_sum, 1.0 / 6.0, 1e-15);  // analytic: unit corner tetrahedron
 }
 
 TEST(MeshIoOff, IgnoresExtraVertexColumnsAndFaceColoursAndFansPolygons) {
@@ -449,21 +424,6 @@ TEST(MeshIoPly, ReadsBinaryLittleAndBigEndianWithAnyPropertyTypes) {
   }
 }
 
-std::string gzip(std::string_view plain) {
-  std::string gz(compressBound(static_cast<uLong>(plain.size())) + 64, '\0');
-  // gzip wrapper via deflateInit2 (compress() writes the zlib wrapper, not gzip).
-  z_stream zs{};
-  EXPECT_EQ(deflateInit2(&zs, 9, Z_DEFLATED, 15 + 16, 8, Z_DEFAULT_STRATEGY), Z_OK);
-  zs.next_in = reinterpret_cast<Bytef*>(const_cast<char*>(plain.data()));
-  zs.avail_in = static_cast<uInt>(plain.size());
-  zs.next_out = reinterpret_cast<Bytef*>(gz.data());
-  zs.avail_out = static_cast<uInt>(gz.size());
-  EXPECT_EQ(deflate(&zs, Z_FINISH), Z_STREAM_END);
-  gz.resize(zs.total_out);
-  deflateEnd(&zs);
-  return gz;
-}
-
 TEST(MeshIoPly, ReadsGzipByMagicNotByName) {
   auto m = parse(gzip(kAsciiPly), MeshFormat::kPly);
   ASSERT_TRUE(m.ok()) << m.status().to_string();
@@ -650,15 +610,6 @@ TEST(MeshIo3mf, RefusesWhat3mfCannotHold) {
 }
 
 #if HARDCOPY_HAVE_LIB3MF
-// lib3mf 1.8.1's package reader never closes the zip entries it opens
-// (NMR::COpcPackageReader::openZIPEntryIndexed); keep LeakSanitizer from blaming the test for it.
-int read_3mf_file(NMR::PLib3MFModelReader* reader, const std::filesystem::path& path) {
-#if HC_TEST_HAS_LSAN
-  __lsan::ScopedDisabler third_party_leak;
-#endif
-  return NMR::lib3mf_reader_readfromfileutf8(reader, path.c_str());
-}
-
 // lib3mf's C interface, wrapped just enough for the checks below.
 struct Lib3mfHandle {
   NMR::PLib3MFBase* p = nullptr;
@@ -708,7 +659,7 @@ TEST(MeshIo3mf, Lib3mfReadsOurPartsNamesCountsAndMaterials) {
   Lib3mfHandle model, reader;
   ASSERT_EQ(NMR::lib3mf_createmodel(&model.p), 0);
   ASSERT_EQ(NMR::lib3mf_model_queryreader(model.p, "3mf", &reader.p), 0);
-  ASSERT_EQ(read_3mf_file(reader.p, path), 0);
+  ASSERT_EQ(testing::read_3mf_file(reader.p, path), 0);
   DWORD warnings = 0;
   NMR::lib3mf_reader_getwarningcount(reader.p, &warnings);
   EXPECT_EQ(warnings, 0u);
@@ -775,7 +726,7 @@ TEST(MeshIo3mf, Lib3mfReadsVerticesOfASingleMeshFromWriteMesh) {
   Lib3mfHandle model, reader, it, res;
   ASSERT_EQ(NMR::lib3mf_createmodel(&model.p), 0);
   ASSERT_EQ(NMR::lib3mf_model_queryreader(model.p, "3mf", &reader.p), 0);
-  ASSERT_EQ(read_3mf_file(reader.p, path), 0);
+  ASSERT_EQ(testing::read_3mf_file(reader.p, path), 0);
   DWORD unit = 99;
   NMR::lib3mf_model_getunit(model.p, &unit);
   EXPECT_EQ(unit, static_cast<DWORD>(NMR::MODELUNIT_MILLIMETER));

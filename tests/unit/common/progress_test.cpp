@@ -8,11 +8,12 @@
 #include <cstdio>
 #include <cstdlib>
 #include <mutex>
-#include <optional>
 #include <regex>
 #include <string>
 #include <thread>
 #include <vector>
+
+#include "scoped_env.h"
 
 namespace hc {
 namespace {
@@ -90,31 +91,6 @@ std::unique_ptr<ProgressReporter> make_reporter(ProgressStyle style, const Captu
   options.silent_below = std::chrono::milliseconds(0);  // these tests read every line
   return make_console_progress(options);
 }
-
-class ScopedEnv {
- public:
-  ScopedEnv(const char* name, const char* value) : name_(name) {
-    if (const char* old = std::getenv(name)) old_ = old;
-    if (value) {
-      ::setenv(name, value, 1);
-    } else {
-      ::unsetenv(name);
-    }
-  }
-  ~ScopedEnv() {
-    if (old_) {
-      ::setenv(name_, old_->c_str(), 1);
-    } else {
-      ::unsetenv(name_);
-    }
-  }
-  ScopedEnv(const ScopedEnv&) = delete;
-  ScopedEnv& operator=(const ScopedEnv&) = delete;
-
- private:
-  const char* name_;
-  std::optional<std::string> old_;
-};
 
 TEST(ProgressTask, ReportsBeginUpdatesAndEnd) {
   RecordingReporter reporter;
@@ -347,7 +323,7 @@ TEST(ConsoleProgress, ConcurrentUpdatesDrawWholeBars) {
 
 TEST(ProgressStyle, AutoIsLinesWhenNotATerminal) {
   CapturedStream out;
-  ScopedEnv ci("CI", nullptr);
+  testing::ScopedEnv ci("CI", nullptr);
   EXPECT_EQ(resolve_progress_style(ProgressStyle::kAuto, out.get()), ProgressStyle::kLines);
   EXPECT_EQ(resolve_progress_style(ProgressStyle::kBar, out.get()), ProgressStyle::kBar);
   EXPECT_EQ(resolve_progress_style(ProgressStyle::kQuiet, out.get()), ProgressStyle::kQuiet);
@@ -363,11 +339,11 @@ TEST(ProgressStyle, AutoOnATerminalIsBarUnlessCiIsSet) {
   std::FILE* terminal = std::fopen(name, "w");
   ASSERT_NE(terminal, nullptr);
   {
-    ScopedEnv ci("CI", nullptr);
+    testing::ScopedEnv ci("CI", nullptr);
     EXPECT_EQ(resolve_progress_style(ProgressStyle::kAuto, terminal), ProgressStyle::kBar);
   }
   {
-    ScopedEnv ci("CI", "true");
+    testing::ScopedEnv ci("CI", "true");
     EXPECT_EQ(resolve_progress_style(ProgressStyle::kAuto, terminal), ProgressStyle::kLines);
   }
   std::fclose(terminal);

@@ -64,6 +64,20 @@ TriangleMesh without(TriangleMesh m, Eigen::Index first, Eigen::Index count) {
 
 void flip(TriangleMesh* m, Eigen::Index t) { std::swap(m->triangles(t, 1), m->triangles(t, 2)); }
 
+// Two tetrahedra sharing only vertex 0, a bowtie vertex; the second is the first reflected through
+// the origin (a reflection reverses orientation, so its faces are flipped back outward). The
+// second's own apex, vertex 4, is left unreferenced.
+TriangleMesh bowtie() {
+  TriangleMesh b = tetrahedron();
+  b.vertices = -b.vertices;
+  for (Eigen::Index t = 0; t < b.num_triangles(); ++t) flip(&b, t);
+  TriangleMesh m = join(tetrahedron(), b);
+  for (Eigen::Index t = 4; t < 8; ++t)
+    for (int k = 0; k < 3; ++k)
+      if (m.triangles(t, k) == 4) m.triangles(t, k) = 0;  // share the apex
+  return m;
+}
+
 // Torus around the z axis (radii big_r > small_r), n segments around the axis and m around the
 // tube; each quad of the grid split in two. V = nm, E = 3nm, F = 2nm.
 TriangleMesh torus(int n, int m, double big_r, double small_r) {
@@ -184,16 +198,7 @@ TEST(MeshCheck, CubeWithOneFlippedTriangle) {
 }
 
 TEST(MeshCheck, BowtieVertex) {
-  // Two tetrahedra sharing only vertex 0; the second is the first reflected through the origin
-  // (a reflection reverses orientation, so its faces are flipped back outward).
-  TriangleMesh b = tetrahedron();
-  b.vertices = -b.vertices;
-  for (Eigen::Index t = 0; t < b.num_triangles(); ++t) flip(&b, t);
-  TriangleMesh m = join(tetrahedron(), b);
-  for (Eigen::Index t = 4; t < 8; ++t)
-    for (int k = 0; k < 3; ++k)
-      if (m.triangles(t, k) == 4) m.triangles(t, k) = 0;  // share the apex
-  const MeshCheckReport r = check(m);
+  const MeshCheckReport r = check(bowtie());
   EXPECT_EQ(r.unreferenced_vertices, 1);  // the second apex, now unused
   EXPECT_EQ(r.non_manifold_vertices, 1);
   EXPECT_EQ(r.non_manifold_edges, 0);
@@ -513,13 +518,7 @@ TEST(MeshRepair, OpenBoxStaysOpenAndSaysSo) {
 }
 
 TEST(MeshRepair, SplitsBowtieVertex) {
-  TriangleMesh b = tetrahedron();
-  b.vertices = -b.vertices;
-  for (Eigen::Index t = 0; t < b.num_triangles(); ++t) flip(&b, t);
-  TriangleMesh m = join(tetrahedron(), b);
-  for (Eigen::Index t = 4; t < 8; ++t)
-    for (int k = 0; k < 3; ++k)
-      if (m.triangles(t, k) == 4) m.triangles(t, k) = 0;
+  TriangleMesh m = bowtie();
   const MeshRepairSummary s = repair(&m);
   EXPECT_EQ(s.split_non_manifold_vertices, 1);
   EXPECT_TRUE(s.after.manifold);

@@ -1,0 +1,36 @@
+// Sets an environment variable for one scope and restores the previous value (or its absence).
+#pragma once
+
+#include <cstdlib>
+#include <optional>
+#include <string>
+
+namespace hc::testing {
+
+class ScopedEnv {
+ public:
+  // `value` nullptr unsets the variable for the scope.
+  ScopedEnv(const char* name, const char* value) : name_(name) {
+    if (const char* old = std::getenv(name)) old_ = old;
+    if (value) {
+      ::setenv(name, value, 1);
+    } else {
+      ::unsetenv(name);
+    }
+  }
+  ~ScopedEnv() {
+    if (old_) {
+      ::setenv(name_, old_->c_str(), 1);
+    } else {
+      ::unsetenv(name_);
+    }
+  }
+  ScopedEnv(const ScopedEnv&) = delete;
+  ScopedEnv& operator=(const ScopedEnv&) = delete;
+
+ private:
+  const char* name_;
+  std::optional<std::string> old_;
+};
+
+}  // namespace hc::testing
