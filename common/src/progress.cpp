@@ -105,8 +105,7 @@ class ConsoleProgress final : public ProgressReporter {
     const Clock::time_point now = now_();
     const Task& task = tasks_.back();
     const std::uint64_t done = done_.load(std::memory_order_relaxed);
-    const bool worth_a_line =
-        task.drawn || ticks(now) - ticks(task.start) >= silent_below_ns_;
+    const bool worth_a_line = task.drawn || ticks(now) - ticks(task.start) >= silent_below_ns_;
     if (style_ != ProgressStyle::kQuiet && worth_a_line) {
       std::string line = task.total == 0 ? fmt::format("{}: done ({}) in {:.1f} s", task.name, done,
                                                        seconds(now - task.start))

@@ -33,7 +33,8 @@ class Context {
   std::unique_ptr<ProgressReporter> progress_;
 };
 
-// Each family registers its subcommands; a subcommand's callback stores its exit code in *exit_code.
+// Each family registers its subcommands; a subcommand's callback stores its exit code in
+// *exit_code.
 void add_mesh_commands(CLI::App& app, const GlobalOptions& global, int* exit_code);
 void add_demo_command(CLI::App& app, const GlobalOptions& global, int* exit_code);
 

@@ -9,13 +9,16 @@
 namespace hc::cli {
 
 Context::Context(const GlobalOptions& global)
-    : progress_(make_console_progress(global.quiet ? ProgressStyle::kQuiet : ProgressStyle::kAuto)) {}
+    : progress_(
+          make_console_progress(global.quiet ? ProgressStyle::kQuiet : ProgressStyle::kAuto)) {}
 
 int Context::fail(std::string_view command, const Status& status) const {
   fmt::print(stderr, "hardcopy {}: {}\n", command, status.to_string());
   switch (status.code()) {
-    case StatusCode::kFailedPrecondition: return kExitNo;
-    default: return kExitBadInput;
+    case StatusCode::kFailedPrecondition:
+      return kExitNo;
+    default:
+      return kExitBadInput;
   }
 }
 
@@ -27,7 +30,7 @@ int main(int argc, char** argv) {
     fmt::print(stderr, "hardcopy: ignoring {}: {}\n", hc::log::kEnvVar, s.message());
 
   CLI::App app{"hardcopy — computational 3D manufacturing toolkit"};
-  app.set_version_flag("--version", "hardcopy 0.1.0");
+  app.set_version_flag("--version", "hardcopy " HARDCOPY_VERSION);
   app.require_subcommand(1);
   GlobalOptions global;
   app.add_flag("-q,--quiet", global.quiet, "Print no progress");

@@ -25,8 +25,8 @@ struct TriangleMesh {
 struct MeshPart {
   std::string name;
   TriangleMesh mesh;
-  std::string material_name;                         // empty: no material assigned
-  std::optional<std::array<std::uint8_t, 4>> rgba;   // display colour of the material
+  std::string material_name;                        // empty: no material assigned
+  std::optional<std::array<std::uint8_t, 4>> rgba;  // display colour of the material
 };
 
 }  // namespace hc

@@ -1,5 +1,5 @@
-// Reading and writing triangle meshes: OBJ, STL (ASCII and binary), PLY (ASCII, binary little and big
-// endian, gzip-compressed .ply.gz) and OFF in; STL, OBJ, PLY, OFF and 3MF out.
+// Reading and writing triangle meshes: OBJ, STL (ASCII and binary), PLY (ASCII, binary little and
+// big endian, gzip-compressed .ply.gz) and OFF in; STL, OBJ, PLY, OFF and 3MF out.
 //
 // Every reader validates as it goes: a malformed, truncated, empty, NaN/Inf-containing or
 // out-of-range-index file gives kInvalidArgument with "FILE:LINE: what was expected" (or the byte
@@ -35,14 +35,15 @@ struct MeshReadOptions {
 };
 
 // Reads a mesh, choosing the reader by extension. "-" is not accepted: meshes need a format.
-Result<TriangleMesh> read_mesh(const std::filesystem::path& path, const MeshReadOptions& options = {});
+Result<TriangleMesh> read_mesh(const std::filesystem::path& path,
+                               const MeshReadOptions& options = {});
 
 // Parses a mesh held in memory. `name` is used in error messages. For PLY the bytes may be gzip.
 Result<TriangleMesh> parse_mesh(std::string_view bytes, MeshFormat format, std::string_view name,
                                 const MeshReadOptions& options = {});
 
 struct MeshWriteOptions {
-  bool binary = true;                                  // STL and PLY: binary (little endian) or ASCII
+  bool binary = true;  // STL and PLY: binary (little endian) or ASCII
   units::LengthUnit unit = units::LengthUnit::kMillimetre;  // 3MF <model unit="...">
 };
 

@@ -70,9 +70,10 @@ Status parse_error(const std::filesystem::path& file, std::size_t line, std::str
 template <typename T>
 class [[nodiscard]] Result {
  public:
-  Result(T value) : v_(std::move(value)) {}  // NOLINT(google-explicit-constructor)
+  Result(T value) : v_(std::move(value)) {}        // NOLINT(google-explicit-constructor)
   Result(Status status) : v_(std::move(status)) {  // NOLINT(google-explicit-constructor)
-    if (std::get<Status>(v_).ok()) v_ = Status(StatusCode::kInternal, "Result built from OK status");
+    if (std::get<Status>(v_).ok())
+      v_ = Status(StatusCode::kInternal, "Result built from OK status");
   }
 
   bool ok() const { return std::holds_alternative<T>(v_); }
@@ -99,9 +100,9 @@ class [[nodiscard]] Result {
 #define HC_STATUS_CONCAT(a, b) HC_STATUS_CONCAT_INNER(a, b)
 
 // Returns the Status from the enclosing function if `expr` (a Status) is not OK.
-#define HC_RETURN_IF_ERROR(expr)            \
-  do {                                      \
-    ::hc::Status hc_status_ = (expr);       \
+#define HC_RETURN_IF_ERROR(expr)             \
+  do {                                       \
+    ::hc::Status hc_status_ = (expr);        \
     if (!hc_status_.ok()) return hc_status_; \
   } while (false)
 

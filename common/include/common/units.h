@@ -25,12 +25,18 @@ enum class LengthUnit { kMicron, kMillimetre, kCentimetre, kInch, kFoot, kMetre 
 
 constexpr double metres_per(LengthUnit u) {
   switch (u) {
-    case LengthUnit::kMicron: return kMetresPerMicron;
-    case LengthUnit::kMillimetre: return kMetresPerMillimetre;
-    case LengthUnit::kCentimetre: return kMetresPerCentimetre;
-    case LengthUnit::kInch: return kMetresPerInch;
-    case LengthUnit::kFoot: return kMetresPerFoot;
-    case LengthUnit::kMetre: return 1.0;
+    case LengthUnit::kMicron:
+      return kMetresPerMicron;
+    case LengthUnit::kMillimetre:
+      return kMetresPerMillimetre;
+    case LengthUnit::kCentimetre:
+      return kMetresPerCentimetre;
+    case LengthUnit::kInch:
+      return kMetresPerInch;
+    case LengthUnit::kFoot:
+      return kMetresPerFoot;
+    case LengthUnit::kMetre:
+      return 1.0;
   }
   return 1.0;
 }
