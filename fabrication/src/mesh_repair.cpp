@@ -178,18 +178,102 @@ std::int64_t count_flipped(const MatrixX3d& before_vertices, const std::vector<T
   return flipped;
 }
 
+// The opt-in self-intersection stage, on `mesh` as the earlier steps left it (whose check is
+// summary->after). It never fails the repair: whatever goes wrong is recorded in
+// summary->self_intersections, and `mesh` and summary->after then stay as they were.
+void resolve_self_intersections(const MeshRepairOptions& options,
+                                const MeshCheckOptions& check_options, TriangleMesh* mesh,
+                                MeshRepairSummary* summary) {
+  const auto start = Clock::now();
+  SelfIntersectionStage& stage = summary->self_intersections;
+  stage.attempted = true;
+  stage.pairs_before = summary->after.self_intersecting_pairs;
+  stage.pairs_after = stage.pairs_before;
+  const auto fail = [&](std::string why) {
+    stage.failed = true;
+    stage.message = std::move(why);
+    stage.time_s = std::chrono::duration<double>(Clock::now() - start).count();
+  };
+
+  // CGAL works on the triangles and the vertices they use; the rest (kept when
+  // remove_unreferenced_vertices is off) is appended again afterwards.
+  std::vector<int> new_index(static_cast<std::size_t>(mesh->num_vertices()), -1);
+  for (Eigen::Index t = 0; t < mesh->num_triangles(); ++t) {
+    const auto row = mesh->triangles.row(t);
+    if (row(0) == row(1) || row(1) == row(2) || row(2) == row(0))
+      return fail("a kept triangle has a repeated corner (remove_degenerate_triangles is off)");
+    for (int k = 0; k < 3; ++k) new_index[row(k)] = 0;
+  }
+  std::vector<int> unused;
+  int n = 0;
+  for (std::size_t v = 0; v < new_index.size(); ++v) {
+    if (new_index[v] == 0) {
+      new_index[v] = n++;
+    } else {
+      unused.push_back(static_cast<int>(v));
+    }
+  }
+  TriangleMesh work;
+  work.vertices.resize(n, 3);
+  for (std::size_t v = 0; v < new_index.size(); ++v)
+    if (new_index[v] >= 0) work.vertices.row(new_index[v]) = mesh->vertices.row(v);
+  work.triangles.resize(mesh->num_triangles(), 3);
+  for (Eigen::Index t = 0; t < mesh->num_triangles(); ++t)
+    for (int k = 0; k < 3; ++k) work.triangles(t, k) = new_index[mesh->triangles(t, k)];
+
+  cgal_ops::ResolveOptions resolve;
+  resolve.max_deviation =
+      options.self_intersection_max_deviation * summary->after.bounding_box.diagonal().norm();
+  resolve.parallel = check_options.parallel;
+  {
+    ProgressTask task(options.progress, "resolve self-intersections", cgal_ops::kResolveSteps);
+    resolve.progress = &task;
+    if (Status s = cgal_ops::resolve_self_intersections(resolve, &work, &stage.steps); !s.ok())
+      return fail(s.message());
+  }
+  if (std::none_of(stage.steps.begin(), stage.steps.end(),
+                   [](const SelfIntersectionStep& s) { return s.kept; })) {
+    std::string why = "no CGAL step was kept";
+    for (const SelfIntersectionStep& s : stage.steps)
+      why += fmt::format("; {}: {}", s.method, s.note);
+    return fail(why);
+  }
+  if (!unused.empty()) {
+    const Eigen::Index first = work.vertices.rows();
+    work.vertices.conservativeResize(first + static_cast<Eigen::Index>(unused.size()), 3);
+    for (std::size_t i = 0; i < unused.size(); ++i)
+      work.vertices.row(first + static_cast<Eigen::Index>(i)) = mesh->vertices.row(unused[i]);
+  }
+  Result<MeshCheckReport> after = check_mesh(work, check_options);
+  if (!after.ok()) return fail("checking the result failed: " + after.status().message());
+  // The steps judged by their own count; the verdict that is reported is check_mesh's.
+  if (after->self_intersecting_pairs >= stage.pairs_before ||
+      (summary->after.closed && !after->closed))
+    return fail(fmt::format("the check of the result found {} intersecting pairs{}",
+                            after->self_intersecting_pairs, after->closed ? "" : ", and it open"));
+  *mesh = std::move(work);
+  summary->after = std::move(*after);
+  stage.pairs_after = summary->after.self_intersecting_pairs;
+  summary->resolved_self_intersecting_pairs = stage.pairs_before - stage.pairs_after;
+  stage.time_s = std::chrono::duration<double>(Clock::now() - start).count();
+}
+
 }  // namespace
 
 std::string MeshRepairOptions::validate() const {
   if (!std::isfinite(weld_tolerance) || weld_tolerance < 0.0)
     return fmt::format("weld_tolerance must be finite and >= 0, got {}", weld_tolerance);
+  if (!std::isfinite(self_intersection_max_deviation) || self_intersection_max_deviation <= 0.0)
+    return fmt::format("self_intersection_max_deviation must be finite and > 0, got {}",
+                       self_intersection_max_deviation);
   return {};
 }
 
 bool MeshRepairSummary::changed() const {
   return merged_vertices > 0 || removed_degenerate_triangles > 0 ||
          removed_duplicate_triangles > 0 || removed_unreferenced_vertices > 0 ||
-         flipped_triangles > 0 || split_non_manifold_vertices > 0;
+         flipped_triangles > 0 || split_non_manifold_vertices > 0 ||
+         resolved_self_intersecting_pairs > 0;
 }
 
 Status repair_mesh(const MeshRepairOptions& options, TriangleMesh* mesh,
@@ -349,11 +433,35 @@ Status repair_mesh(const MeshRepairOptions& options, TriangleMesh* mesh,
   }
 
   HC_ASSIGN_OR_RETURN(summary->after, check_mesh(repaired, check_options));
+  if (options.resolve_self_intersections && summary->after.self_intersecting_pairs > 0)
+    resolve_self_intersections(options, check_options, &repaired, summary);
   *mesh = std::move(repaired);
   summary->closed = summary->after.closed;
   summary->printable = summary->after.printable;
   summary->time_s = std::chrono::duration<double>(Clock::now() - start).count();
   return {};
+}
+
+nlohmann::json to_json(const SelfIntersectionStage& stage) {
+  nlohmann::json steps = nlohmann::json::array();
+  for (const SelfIntersectionStep& s : stage.steps) {
+    steps.push_back({
+        {"method", s.method},
+        {"kept", s.kept},
+        {"pairs_before", s.pairs_before},
+        {"pairs_after", s.pairs_after < 0 ? nlohmann::json() : nlohmann::json(s.pairs_after)},
+        {"deviation", s.deviation < 0.0 ? nlohmann::json() : nlohmann::json(s.deviation)},
+        {"deviation_error", s.deviation_error},
+        {"time_s", s.time_s},
+        {"note", s.note},
+    });
+  }
+  return {
+      {"attempted", stage.attempted},     {"failed", stage.failed},
+      {"message", stage.message},         {"pairs_before", stage.pairs_before},
+      {"pairs_after", stage.pairs_after}, {"steps", std::move(steps)},
+      {"time_s", stage.time_s},
+  };
 }
 
 nlohmann::json to_json(const MeshRepairSummary& summary) {
@@ -365,6 +473,8 @@ nlohmann::json to_json(const MeshRepairSummary& summary) {
       {"removed_unreferenced_vertices", summary.removed_unreferenced_vertices},
       {"flipped_triangles", summary.flipped_triangles},
       {"split_non_manifold_vertices", summary.split_non_manifold_vertices},
+      {"resolved_self_intersecting_pairs", summary.resolved_self_intersecting_pairs},
+      {"self_intersections", to_json(summary.self_intersections)},
       {"closed", summary.closed},
       {"printable", summary.printable},
       {"time_s", summary.time_s},
@@ -385,6 +495,23 @@ std::string to_text(const MeshRepairSummary& summary) {
   line("removed unreferenced vertices", summary.removed_unreferenced_vertices);
   line("flipped triangles", summary.flipped_triangles);
   line("split non-manifold vertices", summary.split_non_manifold_vertices);
+  const SelfIntersectionStage& stage = summary.self_intersections;
+  if (stage.attempted) {
+    line("resolved intersecting pairs", summary.resolved_self_intersecting_pairs);
+    for (const SelfIntersectionStep& s : stage.steps) {
+      out += fmt::format("  {:<30}{}, pairs {} -> {}", s.method, s.kept ? "kept" : "not kept",
+                         s.pairs_before, s.pairs_after < 0 ? "?" : std::to_string(s.pairs_after));
+      if (s.deviation >= 0.0)
+        out += fmt::format(", deviation {:.3g} (+-{:.3g})", s.deviation, s.deviation_error);
+      out += fmt::format(", {:.3f} s", s.time_s);
+      if (!s.note.empty()) out += " (" + s.note + ")";
+      out += "\n";
+    }
+    if (stage.failed)
+      out += fmt::format(
+          "WARNING: self-intersections not resolved, mesh kept as repaired before: {}\n",
+          stage.message);
+  }
   out += fmt::format("{:<32}{}\n", "closed", summary.closed ? "yes" : "no");
   out += fmt::format("{:<32}{}\n", "printable", summary.printable ? "yes" : "no");
   out += fmt::format("{:<32}{:.3f} s\n", "time", summary.time_s);

@@ -70,9 +70,9 @@ int run_convert(const GlobalOptions& global, const ConvertArgs& args) {
     return ctx.fail("mesh convert", s);
   if (args.json) {
     (void)hc::print_json({{"input", args.input},
-                {"output", args.output},
-                {"vertices", mesh->num_vertices()},
-                {"triangles", mesh->num_triangles()}});
+                          {"output", args.output},
+                          {"vertices", mesh->num_vertices()},
+                          {"triangles", mesh->num_triangles()}});
   } else {
     fmt::print("wrote {} ({} vertices, {} triangles)\n", args.output, mesh->num_vertices(),
                mesh->num_triangles());
@@ -84,6 +84,7 @@ struct RepairArgs {
   std::string input;
   std::string output;
   double weld_tolerance = 0.0;
+  bool resolve_self_intersections = false;
   bool json = false;
 };
 
@@ -95,6 +96,7 @@ int run_repair(const GlobalOptions& global, const RepairArgs& args) {
   if (!mesh.ok()) return ctx.fail("mesh repair", mesh.status());
   fabrication::MeshRepairOptions options;
   options.weld_tolerance = args.weld_tolerance;
+  options.resolve_self_intersections = args.resolve_self_intersections;
   options.progress = ctx.progress();
   fabrication::MeshRepairSummary summary;
   if (Status s = fabrication::repair_mesh(options, &*mesh, &summary); !s.ok())
@@ -137,8 +139,9 @@ void add_mesh_commands(CLI::App& app, const GlobalOptions& global, int* exit_cod
 
   auto convert = std::make_shared<ConvertArgs>();
   CLI::App* v = mesh->add_subcommand(
-      "convert", "Convert between mesh formats, chosen by extension (.obj .stl .ply .ply.gz .off; "
-                 "writes also .3mf)");
+      "convert",
+      "Convert between mesh formats, chosen by extension (.obj .stl .ply .ply.gz .off; "
+      "writes also .3mf)");
   v->add_option("IN", convert->input, "Input mesh")->required();
   v->add_option("OUT", convert->output, "Output mesh")->required();
   v->add_flag("--ascii", convert->ascii, "Write ASCII STL / PLY instead of binary");
@@ -151,13 +154,19 @@ void add_mesh_commands(CLI::App& app, const GlobalOptions& global, int* exit_cod
   CLI::App* r = mesh->add_subcommand(
       "repair",
       "Weld duplicate vertices, drop degenerate and duplicate faces, orient consistently and "
-      "outward.\nExit 0 when the result is printable, 1 when it is not (e.g. still open).");
+      "outward; optionally resolve self-intersections.\nExit 0 when the result is printable, 1 "
+      "when it is not (e.g. still open).");
   r->add_option("IN", repair->input, "Input mesh")->required();
   r->add_option("OUT", repair->output, "Repaired mesh")->required();
   r->add_option("--weld-tolerance", repair->weld_tolerance,
                 "Merge vertices closer than this, in the mesh's unit (0: identical positions)")
       ->check(CLI::NonNegativeNumber)
       ->capture_default_str();
+  r->add_flag("--resolve-self-intersections", repair->resolve_self_intersections,
+              fmt::format("Then try CGAL's experimental repairs on self-intersecting triangles "
+                          "(cap flips, local removal, autorefinement); they may move the surface "
+                          "by up to {:g} of the bounding-box diagonal",
+                          fabrication::kDefaultSelfIntersectionMaxDeviation));
   r->add_flag("--json", repair->json, "Print one JSON object");
   r->callback([&global, repair, exit_code] { *exit_code = run_repair(global, *repair); });
 }

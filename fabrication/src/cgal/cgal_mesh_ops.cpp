@@ -3,11 +3,15 @@
 
 #include <CGAL/Exact_predicates_inexact_constructions_kernel.h>
 #include <CGAL/Polygon_mesh_processing/connected_components.h>
+#include <CGAL/Polygon_mesh_processing/corefinement.h>
+#include <CGAL/Polygon_mesh_processing/distance.h>
+#include <CGAL/Polygon_mesh_processing/measure.h>
 #include <CGAL/Polygon_mesh_processing/orient_polygon_soup.h>
 #include <CGAL/Polygon_mesh_processing/orientation.h>
 #include <CGAL/Polygon_mesh_processing/polygon_soup_to_polygon_mesh.h>
 #include <CGAL/Polygon_mesh_processing/repair_degeneracies.h>
 #include <CGAL/Polygon_mesh_processing/repair_polygon_soup.h>
+#include <CGAL/Polygon_mesh_processing/repair_self_intersections.h>
 #include <CGAL/Polygon_mesh_processing/self_intersections.h>
 #include <CGAL/Surface_mesh.h>
 #include <CGAL/boost/graph/helpers.h>
@@ -16,8 +20,13 @@
 #include <algorithm>
 #include <array>
 #include <boost/iterator/function_output_iterator.hpp>
+#include <chrono>
+#include <cmath>
 #include <exception>
 #include <limits>
+#include <numbers>
+#include <set>
+#include <string>
 #include <string_view>
 #include <utility>
 
@@ -312,6 +321,147 @@ void export_mesh(SurfaceMesh& sm, TriangleMesh* out) {
   }
 }
 
+// --- Self-intersection repair ---------------------------------------------------------------
+
+// A triangle whose largest angle exceeds this is a cap: the threshold CGAL's own
+// internal::is_badly_shaped names ("angle over 160° ==> cap", repair_degeneracies.h, 5.5.1).
+constexpr double kCapAngleDeg = 160.0;
+// The Hausdorff distances deciding whether a step stays within max_deviation are measured to
+// within this fraction of it (CGAL's bounded-error algorithm stops refining there). Its cost grows
+// with the inverse square: on candleStand.stl, 0.04 s at a tenth, 0.35 s at a hundredth, 34 s at a
+// ten-thousandth.
+constexpr double kDeviationErrorFraction = 0.1;
+
+// Pairs of non-collinear faces of `sm` that intersect beyond a shared vertex or edge: the count
+// check_mesh reports (collinear faces are its degenerate triangles, and CGAL would pair each with
+// itself).
+std::vector<FacePair> intersecting_pairs(const SurfaceMesh& sm, bool parallel) {
+  std::vector<FaceIndex> faces;
+  faces.reserve(sm.number_of_faces());
+  for (FaceIndex f : sm.faces())
+    if (!is_collinear_face(sm, f)) faces.push_back(f);
+  std::vector<FacePair> pairs;
+  self_intersections_with(parallel, faces, sm, std::back_inserter(pairs), 0);
+  return pairs;
+}
+
+// Hausdorff distance from `a` to `b` (one-sided), or between them (symmetric), to within
+// error_bound. Faces present in both are skipped (CGAL's match_faces), so a local change costs
+// little. Sequential: CGAL 5.5's parallel version needs METIS as well as TBB.
+double hausdorff(const SurfaceMesh& a, const SurfaceMesh& b, bool symmetric, double error_bound) {
+  return symmetric ? PMP::bounded_error_symmetric_Hausdorff_distance<CGAL::Sequential_tag>(
+                         a, b, error_bound)
+                   : PMP::bounded_error_Hausdorff_distance<CGAL::Sequential_tag>(a, b, error_bound);
+}
+
+enum class ResolveMethod { kCapFlips, kLocalRemoval, kAutorefine };
+
+const char* method_name(ResolveMethod m) {
+  switch (m) {
+    case ResolveMethod::kCapFlips:
+      return "cap_flips";
+    case ResolveMethod::kLocalRemoval:
+      return "local_removal";
+    case ResolveMethod::kAutorefine:
+      return "autorefine";
+  }
+  return "?";
+}
+
+// Runs one CGAL repair on `work` (a copy of the current mesh). Returns what CGAL's own verdict
+// says when it admits defeat, empty otherwise; the caller judges the result itself either way.
+std::string run_method(ResolveMethod method, const ResolveOptions& options,
+                       const std::vector<FacePair>& pairs, SurfaceMesh* work) {
+  switch (method) {
+    case ResolveMethod::kCapFlips: {
+      // Only the faces that intersect: caps elsewhere are the mesh's own business (OpenSCAD
+      // output is full of them), and flipping them would change a surface that is fine.
+      std::set<FaceIndex> faces;
+      for (const FacePair& p : pairs) {
+        faces.insert(p.first);
+        faces.insert(p.second);
+      }
+      // A needle threshold of infinity collapses nothing (a collapse moves a vertex); caps
+      // taller than max_deviation are left alone (a flip moves the surface by up to the height).
+      const bool done = PMP::experimental::remove_almost_degenerate_faces(
+          faces, *work, std::cos(kCapAngleDeg * std::numbers::pi / 180.0),
+          std::numeric_limits<double>::infinity(), 0.0,
+          CGAL::parameters::flip_triangle_height_threshold(options.max_deviation));
+      return done ? std::string() : "CGAL could not flip every cap";
+    }
+    case ResolveMethod::kLocalRemoval: {
+      // preserve_genus: a print must keep its holes. apply_per_connected_component is left at its
+      // default (true); neither it nor preserve_genus(false) changed the outcome on
+      // candleStand.stl or on two overlapping cubes.
+      const bool done = PMP::experimental::remove_self_intersections(
+          *work, CGAL::parameters::preserve_genus(true));
+      return done ? std::string() : "CGAL reports intersections left";
+    }
+    case ResolveMethod::kAutorefine: {
+      const bool done = PMP::experimental::autorefine_and_remove_self_intersections(*work);
+      return done ? std::string() : "CGAL reports intersections left";
+    }
+  }
+  return {};
+}
+
+std::string join_notes(const std::string& a, const std::string& b) {
+  if (a.empty()) return b;
+  if (b.empty()) return a;
+  return a + "; " + b;
+}
+
+// Judges the result of one step against `current` (whose pairs are known); fills step->pairs_after,
+// deviation and note, and returns whether `work` should replace `current`.
+bool accept_step(ResolveMethod method, const ResolveOptions& options, const SurfaceMesh& current,
+                 bool closed, std::int64_t pairs_before, SurfaceMesh* work,
+                 std::vector<FacePair>* pairs_after, SelfIntersectionStep* step) {
+  work->collect_garbage();
+  if (work->number_of_faces() == 0 || !CGAL::is_valid_polygon_mesh(*work) ||
+      !CGAL::is_triangle_mesh(*work)) {
+    step->note = join_notes(step->note, "result is not a valid triangle mesh");
+    return false;
+  }
+  if (closed && !CGAL::is_closed(*work)) {
+    step->note = join_notes(step->note, "result is not closed");
+    return false;
+  }
+  // The local steps are meant to leave the topology alone (a print must keep its holes);
+  // autorefine merges the parts that overlap, which is what changes it.
+  const auto euler = [](const SurfaceMesh& sm) {
+    return static_cast<std::int64_t>(sm.number_of_vertices()) -
+           static_cast<std::int64_t>(sm.number_of_edges()) +
+           static_cast<std::int64_t>(sm.number_of_faces());
+  };
+  if (method != ResolveMethod::kAutorefine && euler(*work) != euler(current)) {
+    step->note = join_notes(step->note, "result has another Euler characteristic");
+    return false;
+  }
+  *pairs_after = intersecting_pairs(*work, options.parallel);
+  step->pairs_after = static_cast<std::int64_t>(pairs_after->size());
+  if (step->pairs_after >= pairs_before) {
+    step->note = join_notes(step->note, "no fewer intersecting pairs");
+    return false;
+  }
+  // Autorefine removes the parts inside the solid, so only its result must lie on its input.
+  const bool symmetric = method != ResolveMethod::kAutorefine;
+  step->deviation_error = kDeviationErrorFraction * options.max_deviation;
+  step->deviation = hausdorff(*work, current, symmetric, step->deviation_error);
+  if (step->deviation > options.max_deviation) {
+    step->note = join_notes(step->note,
+                            fmt::format("moved the surface by {:.3g}, more than the {:.3g} allowed",
+                                        step->deviation, options.max_deviation));
+    return false;
+  }
+  if (method == ResolveMethod::kAutorefine && PMP::volume(*work) <= 0.0) {
+    // Autorefine keeps what it takes for the outside; when the input's orientation does not say
+    // that (a face pushed through the opposite wall), what is left can be an inside-out scrap.
+    step->note = join_notes(step->note, "result bounds no positive volume");
+    return false;
+  }
+  return true;
+}
+
 }  // namespace
 
 Result<std::vector<std::uint8_t>> collinear_triangles(const TriangleMesh& mesh) {
@@ -399,6 +549,83 @@ Status repair_triangle_soup(const SoupRepairOptions& options, TriangleMesh* soup
     return true;
   });
   return done.status();
+}
+
+Status resolve_self_intersections(const ResolveOptions& options, TriangleMesh* mesh,
+                                  std::vector<SelfIntersectionStep>* steps) {
+  if (!(options.max_deviation > 0.0) || !std::isfinite(options.max_deviation))
+    return invalid_argument(
+        fmt::format("self-intersection repair: max_deviation must be finite and > 0, got {}",
+                    options.max_deviation));
+  SurfaceMesh current;
+  Result<bool> built = guarded<bool>("self-intersection repair", [&]() {
+    std::vector<Polygon> polygons;
+    polygons.reserve(static_cast<std::size_t>(mesh->num_triangles()));
+    std::vector<char> used(static_cast<std::size_t>(mesh->num_vertices()), 0);
+    for (Eigen::Index t = 0; t < mesh->num_triangles(); ++t) {
+      const Polygon q = polygon_of(mesh->triangles, t);
+      if (q[0] == q[1] || q[1] == q[2] || q[2] == q[0]) return false;
+      for (std::size_t v : q) used[v] = 1;
+      polygons.push_back(q);
+    }
+    if (std::find(used.begin(), used.end(), 0) != used.end()) return false;
+    if (!PMP::is_polygon_soup_a_polygon_mesh(polygons)) return false;
+    PMP::polygon_soup_to_polygon_mesh(to_points(mesh->vertices), polygons, current);
+    return true;
+  });
+  if (!built.ok()) return built.status();
+  if (!*built)
+    return invalid_argument(
+        "self-intersection repair: needs a manifold, consistently oriented triangle mesh without "
+        "repeated corners or unreferenced vertices");
+
+  Result<std::vector<FacePair>> first = guarded<std::vector<FacePair>>(
+      "self-intersection repair", [&]() { return intersecting_pairs(current, options.parallel); });
+  if (!first.ok()) return first.status();
+  std::vector<FacePair> pairs = std::move(*first);
+  const bool closed = CGAL::is_closed(current);
+  bool changed = false;
+  for (ResolveMethod method :
+       {ResolveMethod::kCapFlips, ResolveMethod::kLocalRemoval, ResolveMethod::kAutorefine}) {
+    if (pairs.empty()) break;
+    SelfIntersectionStep step;
+    step.method = method_name(method);
+    step.pairs_before = static_cast<std::int64_t>(pairs.size());
+    if (method == ResolveMethod::kAutorefine && !closed) {
+      // Which side is inside is what autorefine keeps or removes by; an open surface has none.
+      step.note = "skipped: the mesh is not closed";
+      steps->push_back(std::move(step));
+      if (options.progress != nullptr) options.progress->advance();
+      continue;
+    }
+    const auto start = std::chrono::steady_clock::now();
+    try {
+      SurfaceMesh work = current;
+      std::vector<FacePair> pairs_after;
+      step.note = run_method(method, options, pairs, &work);
+      if (accept_step(method, options, current, closed, step.pairs_before, &work, &pairs_after,
+                      &step)) {
+        step.kept = true;
+        current = std::move(work);
+        pairs = std::move(pairs_after);
+        changed = true;
+      }
+    } catch (const std::exception& e) {
+      step.note = join_notes(step.note, fmt::format("CGAL failed: {}", e.what()));
+    } catch (...) {
+      step.note = join_notes(step.note, "CGAL failed with an unknown exception");
+    }
+    step.time_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    steps->push_back(std::move(step));
+    if (options.progress != nullptr) options.progress->advance();
+  }
+  if (!changed) return {};
+  return guarded<bool>("self-intersection repair",
+                       [&]() {
+                         export_mesh(current, mesh);
+                         return true;
+                       })
+      .status();
 }
 
 }  // namespace hc::fabrication::cgal_ops

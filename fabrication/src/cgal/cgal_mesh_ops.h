@@ -10,6 +10,7 @@
 #include "common/mesh.h"
 #include "common/progress.h"
 #include "common/status.h"
+#include "fabrication/mesh_repair.h"
 
 namespace hc::fabrication::cgal_ops {
 
@@ -77,5 +78,36 @@ struct SoupRepairStats {
 // (duplicates) or left unreferenced.
 Status repair_triangle_soup(const SoupRepairOptions& options, TriangleMesh* soup,
                             SoupRepairStats* stats);
+
+struct ResolveOptions {
+  // Largest change of the surface a step may make, in the mesh's unit (> 0). The local steps (cap
+  // flips, local removal) are kept only if the symmetric Hausdorff distance between their result
+  // and their input is at most this; autorefine only if every point of its result is within this
+  // of its input (one-sided: removing the parts inside the solid is what it is for).
+  double max_deviation = 0.0;
+  bool parallel = true;              // self-intersection sweeps on all cores (TBB)
+  ProgressTask* progress = nullptr;  // advanced once per step of kResolveSteps
+};
+
+// Units resolve_self_intersections advances its ProgressTask by: one per step.
+inline constexpr std::uint64_t kResolveSteps = 3;
+
+// Tries to remove the self-intersections of `mesh`, a manifold, consistently oriented triangle
+// mesh (no repeated corners, no unreferenced vertices), with CGAL, one step after the other while
+// intersecting pairs remain:
+//   1. "cap_flips": PMP::experimental::remove_almost_degenerate_faces on the intersecting faces
+//      only, flipping the longest edge of caps (an angle over 160 degrees) and collapsing nothing;
+//      a sliver folded over its neighbours is such a cap, and the flip moves no vertex.
+//   2. "local_removal": PMP::experimental::remove_self_intersections (smoothing, or removing the
+//      faces around the intersections and filling the hole), preserving the genus.
+//   3. "autorefine": PMP::experimental::autorefine_and_remove_self_intersections, only on a
+//      closed mesh: splits the faces along their intersections and removes the inner parts.
+// Each step works on a copy; its result replaces `mesh` only if it is a valid triangle mesh, still
+// closed if its input was, has fewer intersecting pairs (collinear faces not counted, as in
+// check_mesh), stays within options.max_deviation and, for autorefine, bounds a positive volume.
+// What each step did is appended to `steps` (a step CGAL throws in is recorded, not returned).
+// Fails (kInvalidArgument) when `mesh` is not such a mesh, leaving it untouched.
+Status resolve_self_intersections(const ResolveOptions& options, TriangleMesh* mesh,
+                                  std::vector<SelfIntersectionStep>* steps);
 
 }  // namespace hc::fabrication::cgal_ops

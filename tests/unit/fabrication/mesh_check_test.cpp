@@ -9,30 +9,15 @@
 
 #include "fabrication/mesh_check.h"
 #include "fabrication/mesh_repair.h"
+#include "synthetic_meshes.h"
 
 namespace hc::fabrication {
 namespace {
 
-// Axis-aligned box [lo, hi]; vertex i is corner (i & 1, i & 2, i & 4). 12 triangles,
-// counter-clockwise seen from outside (each face's normal checked by hand: bottom -z, top +z,
-// front -y, back +y, left -x, right +x).
-TriangleMesh box(const Eigen::Vector3d& lo, const Eigen::Vector3d& hi) {
-  TriangleMesh m;
-  m.vertices.resize(8, 3);
-  for (int i = 0; i < 8; ++i)
-    m.vertices.row(i) << ((i & 1) ? hi.x() : lo.x()), ((i & 2) ? hi.y() : lo.y()),
-        ((i & 4) ? hi.z() : lo.z());
-  m.triangles.resize(12, 3);
-  m.triangles << 0, 2, 3, 0, 3, 1,  // z = lo
-      4, 5, 7, 4, 7, 6,             // z = hi
-      0, 1, 5, 0, 5, 4,             // y = lo
-      2, 6, 7, 2, 7, 3,             // y = hi
-      0, 4, 6, 0, 6, 2,             // x = lo
-      1, 3, 7, 1, 7, 5;             // x = hi
-  return m;
-}
-
-TriangleMesh unit_cube() { return box({0, 0, 0}, {1, 1, 1}); }
+using testing::box;
+using testing::flip;
+using testing::join;
+using testing::unit_cube;
 
 // Corners of the unit right tetrahedron, faces outward (normals -z, -y, -x, (1,1,1)).
 TriangleMesh tetrahedron() {
@@ -44,16 +29,6 @@ TriangleMesh tetrahedron() {
   return m;
 }
 
-// All the triangles of `b` added to `a` as a second part of one mesh.
-TriangleMesh join(const TriangleMesh& a, const TriangleMesh& b) {
-  TriangleMesh m;
-  m.vertices.resize(a.num_vertices() + b.num_vertices(), 3);
-  m.vertices << a.vertices, b.vertices;
-  m.triangles.resize(a.num_triangles() + b.num_triangles(), 3);
-  m.triangles << a.triangles, (b.triangles.array() + static_cast<int>(a.num_vertices())).matrix();
-  return m;
-}
-
 // `m` without triangles first .. first + count - 1.
 TriangleMesh without(TriangleMesh m, Eigen::Index first, Eigen::Index count) {
   const Eigen::Index rest = m.num_triangles() - first - count;
@@ -61,8 +36,6 @@ TriangleMesh without(TriangleMesh m, Eigen::Index first, Eigen::Index count) {
   m.triangles.conservativeResize(m.num_triangles() - count, 3);
   return m;
 }
-
-void flip(TriangleMesh* m, Eigen::Index t) { std::swap(m->triangles(t, 1), m->triangles(t, 2)); }
 
 // Two tetrahedra sharing only vertex 0, a bowtie vertex; the second is the first reflected through
 // the origin (a reflection reverses orientation, so its faces are flipped back outward). The

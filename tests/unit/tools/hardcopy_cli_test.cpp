@@ -1,5 +1,5 @@
-// The `hardcopy` command-line contract: exit codes 0 / 1 / 2, --json keys, and that a failed command
-// leaves no file behind. Runs the built binary as a user would.
+// The `hardcopy` command-line contract: exit codes 0 / 1 / 2, --json keys, and that a failed
+// command leaves no file behind. Runs the built binary as a user would.
 #include <gtest/gtest.h>
 #include <sys/wait.h>
 
@@ -86,8 +86,8 @@ TEST(HardcopyCli, ConvertToEveryFormatKeepsThePrintableVerdict) {
   EXPECT_EQ(hardcopy("mesh convert --ascii " + mesh("bunny.obj") + " " + (dir / "a.stl").string())
                 .exit_code,
             0);
-  EXPECT_EQ(hardcopy("mesh convert " + mesh("bunny.obj") + " " + (dir / "b.3mf").string()).exit_code,
-            0);
+  EXPECT_EQ(
+      hardcopy("mesh convert " + mesh("bunny.obj") + " " + (dir / "b.3mf").string()).exit_code, 0);
   EXPECT_TRUE(std::filesystem::exists(dir / "b.3mf"));
 }
 
@@ -97,9 +97,9 @@ TEST(HardcopyCli, FailedConvertLeavesNoFile) {
   EXPECT_EQ(hardcopy("mesh convert " + (dir / "bad.off").string() + " " + (dir / "x.stl").string())
                 .exit_code,
             2);
-  EXPECT_EQ(hardcopy("mesh convert " + mesh("pinion.off") + " " + (dir / "x.unknown").string())
-                .exit_code,
-            2);
+  EXPECT_EQ(
+      hardcopy("mesh convert " + mesh("pinion.off") + " " + (dir / "x.unknown").string()).exit_code,
+      2);
   EXPECT_EQ(std::distance(std::filesystem::directory_iterator(dir.path()), {}), 1)
       << "only bad.off may be there";
 }
@@ -112,15 +112,33 @@ TEST(HardcopyCli, RepairFixesOrientationButNotHoles) {
   EXPECT_EQ(hardcopy("mesh check " + fixed).exit_code, 0);
 
   const CliRun open = hardcopy("mesh repair --json " + mesh("ChineseDragon-10kv.off") + " " +
-                            (dir / "dragon.stl").string());
+                               (dir / "dragon.stl").string());
   EXPECT_EQ(open.exit_code, 1) << "repair must not claim success on a mesh it could not close";
   EXPECT_EQ(nlohmann::json::parse(open.out)["closed"], false);
+}
+
+TEST(HardcopyCli, RepairResolvesSelfIntersectionsOnRequest) {
+  ScratchDir dir;
+  const auto out = (dir / "candle.stl").string();
+  // candleStand.stl: closed, 10 intersecting pairs (see DemoWritesA3mfPerPrintableMesh).
+  const CliRun plain = hardcopy("mesh repair --json " + mesh("candleStand.stl") + " " + out);
+  EXPECT_EQ(plain.exit_code, 1) << plain.out;
+  EXPECT_EQ(nlohmann::json::parse(plain.out)["self_intersections"]["attempted"], false);
+
+  const CliRun r = hardcopy("mesh repair --json --resolve-self-intersections " +
+                            mesh("candleStand.stl") + " " + out);
+  ASSERT_EQ(r.exit_code, 0) << r.out;
+  const auto j = nlohmann::json::parse(r.out);
+  EXPECT_EQ(j["resolved_self_intersecting_pairs"], 10);
+  EXPECT_EQ(j["self_intersections"]["failed"], false);
+  EXPECT_EQ(j["printable"], true);
+  EXPECT_EQ(hardcopy("mesh check " + out).exit_code, 0) << "the written file must check printable";
 }
 
 TEST(HardcopyCli, DemoWritesA3mfPerPrintableMesh) {
   ScratchDir dir;
   const CliRun r = hardcopy("demo --json --data " + shared_data("meshes").string() + " --out " +
-                         dir.path().string());
+                            dir.path().string());
   ASSERT_EQ(r.exit_code, 0) << r.out;
   const auto rows = nlohmann::json::parse(r.out);
   ASSERT_EQ(rows.size(), corpus_meshes().size());
@@ -129,10 +147,13 @@ TEST(HardcopyCli, DemoWritesA3mfPerPrintableMesh) {
       EXPECT_EQ(row["status"], "not printable");  // open: repair does not fill holes
     } else if (row["file"] == "candleStand.stl") {
       // Closed, but 10 pairs of triangles intersect (CGAL's exact predicates, confirmed with CGAL's
-      // own STL reader; the 6-digit ASCII coordinates fold one sliver over its neighbours), and
-      // repair does not resolve self-intersections.
-      EXPECT_EQ(row["status"], "not printable");
-      EXPECT_EQ(row["self_intersecting_pairs"], 10);
+      // own STL reader; the 6-digit ASCII coordinates fold one sliver over its neighbours). The
+      // demo repairs with resolve_self_intersections, whose cap flip unfolds the sliver.
+      EXPECT_EQ(row["status"], "repaired");
+      EXPECT_EQ(row["resolved_self_intersecting_pairs"], 10);
+      EXPECT_EQ(row["self_intersecting_pairs"], 0);
+      EXPECT_EQ(row["genus"], 7);  // MANIFEST.md
+      EXPECT_TRUE(std::filesystem::exists(row["output"].get<std::string>()));
     } else {
       EXPECT_TRUE(row["status"] == "printable" || row["status"] == "repaired") << row["file"];
       EXPECT_TRUE(std::filesystem::exists(row["output"].get<std::string>())) << row["file"];
