@@ -198,9 +198,11 @@ TEST(MeshRepairSelfIntersection, UnfoldsAFoldedGridInItsPlane) {
   EXPECT_NEAR(s.after.volume, kPyramidVolume, 1e-12);
   EXPECT_NEAR(s.before.volume, kPyramidVolume, 1e-12);
   EXPECT_EQ(s.after.bounding_box.max().z(), 0.0);  // nothing left the plane of the top
-  for (const SelfIntersectionStep& step : s.self_intersections.steps)
-    if (step.kept)
+  for (const SelfIntersectionStep& step : s.self_intersections.steps) {
+    if (step.kept) {
       EXPECT_LE(step.deviation, 1e-3 * std::sqrt(3.0) + step.deviation_error) << step.method;
+    }
+  }
 }
 
 // The centre of the grid pushed down to z = -1.2, out through the apex 0.2 above it. Resolving
