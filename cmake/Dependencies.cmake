@@ -19,3 +19,28 @@ find_package(PkgConfig REQUIRED)
 # Debian's libzip CMake config names tools that live in other packages; pkg-config is reliable.
 pkg_check_modules(LIBZIP REQUIRED IMPORTED_TARGET libzip)
 pkg_check_modules(LIB3MF IMPORTED_TARGET lib3MF)
+
+# processing: TetGen (no CMake config in Debian; built with -DTETLIBRARY), SuiteSparse/CHOLMOD, Ceres.
+find_path(TETGEN_INCLUDE_DIR tetgen.h REQUIRED)
+find_library(TETGEN_LIBRARY tet REQUIRED)
+add_library(TetGen::TetGen UNKNOWN IMPORTED)
+set_target_properties(TetGen::TetGen PROPERTIES IMPORTED_LOCATION ${TETGEN_LIBRARY}
+  INTERFACE_INCLUDE_DIRECTORIES ${TETGEN_INCLUDE_DIR} INTERFACE_COMPILE_DEFINITIONS TETLIBRARY)
+find_path(CHOLMOD_INCLUDE_DIR cholmod.h PATH_SUFFIXES suitesparse REQUIRED)
+find_library(CHOLMOD_LIBRARY cholmod REQUIRED)
+find_library(SUITESPARSE_CONFIG_LIBRARY suitesparseconfig REQUIRED)
+add_library(SuiteSparse::CHOLMOD UNKNOWN IMPORTED)
+set_target_properties(SuiteSparse::CHOLMOD PROPERTIES IMPORTED_LOCATION ${CHOLMOD_LIBRARY}
+  INTERFACE_INCLUDE_DIRECTORIES ${CHOLMOD_INCLUDE_DIR}
+  INTERFACE_LINK_LIBRARIES ${SUITESPARSE_CONFIG_LIBRARY})
+find_package(Ceres REQUIRED)
+
+# rig: compression for MCAP chunks, device access, image files.
+pkg_check_modules(ZSTD REQUIRED IMPORTED_TARGET libzstd)
+pkg_check_modules(LZ4 REQUIRED IMPORTED_TARGET liblz4)
+pkg_check_modules(LIBUSB REQUIRED IMPORTED_TARGET libusb-1.0)
+pkg_check_modules(LIBMODBUS REQUIRED IMPORTED_TARGET libmodbus)
+pkg_check_modules(ARAVIS REQUIRED IMPORTED_TARGET aravis-0.8)
+pkg_check_modules(LIBGPIOD REQUIRED IMPORTED_TARGET libgpiod)
+pkg_check_modules(LIBCAMERA REQUIRED IMPORTED_TARGET libcamera)
+find_package(PNG REQUIRED)

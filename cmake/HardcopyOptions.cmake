@@ -18,11 +18,24 @@ if(HARDCOPY_FUZZ)
   add_compile_options(-fsanitize=fuzzer-no-link)
 endif()
 
-# hardcopy_add_library(NAME DIR [DEPS ...]): a room's library from DIR/src/*.cpp with public headers in
-# DIR/include. Sources are globbed so that adding a file needs no CMake edit.
+# hardcopy_add_library(NAME SOURCES ... PUBLIC ... PRIVATE ...): a library with public headers in
+# ./include, registered in the global HARDCOPY_LIBRARIES list (the tools, fuzzers and benchmarks link it). Sources are globbed so that adding a file needs no CMake edit.
 function(hardcopy_add_library name)
   cmake_parse_arguments(ARG "" "" "SOURCES;PUBLIC;PRIVATE" ${ARGN})
   add_library(${name} STATIC ${ARG_SOURCES})
   target_include_directories(${name} PUBLIC ${CMAKE_CURRENT_SOURCE_DIR}/include)
   target_link_libraries(${name} PUBLIC ${ARG_PUBLIC} PRIVATE hardcopy_flags ${ARG_PRIVATE})
+  set_property(GLOBAL APPEND PROPERTY HARDCOPY_LIBRARIES ${name})
+endfunction()
+
+# hardcopy_add_subdirectories(): adds every direct sub-folder of the current folder that has a
+# CMakeLists.txt, so a room's parts (e.g. processing/fem, processing/material) need no edit here.
+function(hardcopy_add_subdirectories)
+  file(GLOB _children LIST_DIRECTORIES true CONFIGURE_DEPENDS ${CMAKE_CURRENT_SOURCE_DIR}/*)
+  list(SORT _children)
+  foreach(_child ${_children})
+    if(IS_DIRECTORY ${_child} AND EXISTS ${_child}/CMakeLists.txt)
+      add_subdirectory(${_child})
+    endif()
+  endforeach()
 endfunction()

@@ -4,6 +4,7 @@
 #include <CLI/CLI.hpp>
 #include <memory>
 #include <string_view>
+#include <vector>
 
 #include "common/progress.h"
 #include "common/status.h"
@@ -33,9 +34,18 @@ class Context {
   std::unique_ptr<ProgressReporter> progress_;
 };
 
-// Each family registers its subcommands; a subcommand's callback stores its exit code in
-// *exit_code.
-void add_mesh_commands(CLI::App& app, const GlobalOptions& global, int* exit_code);
-void add_demo_command(CLI::App& app, const GlobalOptions& global, int* exit_code);
+// Each family (one file, e.g. mesh_command.cpp) adds its subcommands to the app; a subcommand's
+// callback stores its exit code in *exit_code. Families register themselves at static-initialisation
+// time: `HC_REGISTER_COMMANDS(add_mesh_commands);` at namespace scope in the family's file.
+using CommandAdder = void (*)(CLI::App& app, const GlobalOptions& global, int* exit_code);
+struct CommandRegistration {
+  CommandRegistration(int order, CommandAdder adder);
+};
+// The registered families sorted by `order` (the order of `hardcopy --help`).
+std::vector<CommandAdder> registered_commands();
+
+#define HC_REGISTER_COMMANDS_ORDERED(order, adder) \
+  static const ::hc::cli::CommandRegistration hc_command_registration_##adder { order, adder }
+#define HC_REGISTER_COMMANDS(adder) HC_REGISTER_COMMANDS_ORDERED(100, adder)
 
 }  // namespace hc::cli

@@ -145,4 +145,6 @@ void add_demo_command(CLI::App& app, const GlobalOptions& global, int* exit_code
   d->callback([&global, args, exit_code] { *exit_code = run_demo(global, *args); });
 }
 
+HC_REGISTER_COMMANDS_ORDERED(1000, add_demo_command);
+
 }  // namespace hc::cli

@@ -1,6 +1,9 @@
 // hardcopy — the offline toolkit: git-style subcommands over the Hardcopy libraries.
 #include <fmt/format.h>
 
+#include <algorithm>
+#include <utility>
+
 #include <CLI/CLI.hpp>
 
 #include "command.h"
@@ -22,6 +25,26 @@ int Context::fail(std::string_view command, const Status& status) const {
   }
 }
 
+namespace {
+std::vector<std::pair<int, CommandAdder>>& registry() {
+  static std::vector<std::pair<int, CommandAdder>> adders;
+  return adders;
+}
+}  // namespace
+
+CommandRegistration::CommandRegistration(int order, CommandAdder adder) {
+  registry().emplace_back(order, adder);
+}
+
+std::vector<CommandAdder> registered_commands() {
+  auto entries = registry();
+  std::stable_sort(entries.begin(), entries.end(),
+                   [](const auto& a, const auto& b) { return a.first < b.first; });
+  std::vector<CommandAdder> adders;
+  for (const auto& [order, adder] : entries) adders.push_back(adder);
+  return adders;
+}
+
 }  // namespace hc::cli
 
 int main(int argc, char** argv) {
@@ -35,8 +58,7 @@ int main(int argc, char** argv) {
   GlobalOptions global;
   app.add_flag("-q,--quiet", global.quiet, "Print no progress");
   int exit_code = kExitYes;
-  add_mesh_commands(app, global, &exit_code);
-  add_demo_command(app, global, &exit_code);
+  for (CommandAdder add : registered_commands()) add(app, global, &exit_code);
 
   try {
     app.parse(argc, argv);

@@ -171,4 +171,6 @@ void add_mesh_commands(CLI::App& app, const GlobalOptions& global, int* exit_cod
   r->callback([&global, repair, exit_code] { *exit_code = run_repair(global, *repair); });
 }
 
+HC_REGISTER_COMMANDS_ORDERED(10, add_mesh_commands);
+
 }  // namespace hc::cli
