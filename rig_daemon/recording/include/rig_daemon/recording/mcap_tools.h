@@ -1,0 +1,111 @@
+// Whole-file operations on MCAP sessions: verify (every CRC and index cross-checked), recover (a
+// file cut off by a crash becomes a valid file holding every complete chunk), and the session
+// info that `hardcopy session info` prints.
+#pragma once
+
+#include <cstdint>
+#include <filesystem>
+#include <map>
+#include <string>
+#include <vector>
+
+#include "common/json.h"
+#include "common/status.h"
+#include "rig_daemon/recording/mcap_reader.h"
+#include "rig_daemon/recording/mcap_writer.h"
+
+namespace hc::recording {
+
+// ---- verify ----
+struct VerifyReport {
+  bool ok = false;                    // true only when `problems` is empty
+  std::vector<std::string> problems;  // each names the byte offset and what is wrong
+  std::uint64_t chunks_checked = 0;
+  std::uint64_t messages_checked = 0;
+  std::uint64_t crcs_checked =
+      0;  // non-zero CRCs verified (chunks, data section, summary, attachments)
+  bool has_summary = false;
+  Json to_json() const;
+};
+
+// Reads the whole file linearly and cross-checks it against its summary: magics, record framing,
+// every chunk's uncompressed CRC and size, every inner record, DataEnd's data-section CRC, the
+// Footer's summary CRC, every ChunkIndex against its Chunk (offset, length, times, sizes,
+// compression, message-index offsets and length), every MessageIndex against the messages in its
+// chunk, Statistics against the counted messages / schemas / channels / chunks / metadata /
+// attachments, MetadataIndex / AttachmentIndex entries against the records, SummaryOffset groups,
+// and that every message's channel and every channel's schema are defined.
+// Returns an error Status only when the file cannot be read at all (missing, not MCAP); a readable
+// file with problems gives a report with ok = false.
+Result<VerifyReport> verify(const std::filesystem::path& path);
+
+// ---- recover ----
+struct RecoverReport {
+  std::uint64_t chunks_kept = 0;
+  std::uint64_t chunks_dropped = 0;  // incomplete or failing their CRC / decompression
+  std::uint64_t messages_kept = 0;
+  std::uint64_t metadata_kept = 0;
+  std::uint64_t attachments_kept = 0;
+  std::uint64_t input_bytes_used = 0;  // offset where the usable input ended
+  bool input_was_complete = false;     // the input had its Footer
+  std::string stop_reason;             // why the scan of the input stopped ("" at the Footer)
+  Json to_json() const;
+};
+
+// Linear scan of `input` (typically cut off by a crash); writes `output` as a complete file with a
+// fresh summary holding every complete chunk whose CRC checks (re-chunked unchanged: messages keep
+// their channel ids, sequences and times), every Schema / Channel / Metadata / Attachment found.
+// `options` gives the output's compression and chunk size. The output is written to a temporary
+// name and renamed, so nothing half-written is left behind on failure. Fails when `input` is not
+// MCAP (bad magic) or unreadable, or when output == input.
+Result<RecoverReport> recover(const std::filesystem::path& input,
+                              const std::filesystem::path& output,
+                              const McapWriter::Options& options);
+
+// ---- info ----
+struct ChannelInfo {
+  std::uint16_t id = 0;
+  std::string topic;
+  std::string message_encoding;
+  std::string schema_name;  // "" when schemaless
+  std::string schema_encoding;
+  std::uint64_t message_count = 0;
+  std::uint64_t first_log_time = 0;
+  std::uint64_t last_log_time = 0;
+  double rate_hz = 0;  // (count - 1) / (last - first), 0 with fewer than 2 messages
+  StringMap metadata;
+};
+
+struct DeviceStats {
+  std::string device;
+  std::uint64_t received = 0;
+  std::uint64_t lost = 0;
+  std::uint64_t late = 0;
+};
+
+struct SessionInfo {
+  std::string path;
+  std::uint64_t file_size = 0;
+  Header header;
+  bool has_summary = false;
+  std::uint64_t message_count = 0;
+  std::uint64_t chunk_count = 0;
+  std::uint64_t start_time = 0;  // ns, first log_time
+  std::uint64_t end_time = 0;    // ns, last log_time
+  double duration_s = 0;
+  std::map<std::string, std::uint64_t> compression_chunks;  // "zstd" -> chunks
+  std::uint64_t compressed_bytes = 0;
+  std::uint64_t uncompressed_bytes = 0;
+  std::vector<ChannelInfo> channels;
+  std::vector<std::string> metadata_names;
+  std::vector<std::string> attachment_names;
+  std::vector<DeviceStats> device_stats;  // from the session's device-stats metadata (if any)
+  Json to_json() const;
+};
+
+// Everything `hardcopy session info` shows. Per-channel first/last times come from the chunk's
+// message indexes (no decompression) when the file has them, else from reading the messages.
+// Device stats: see session_conventions.h.
+Result<SessionInfo> session_info(const std::filesystem::path& path);
+
+}  // namespace hc::recording
