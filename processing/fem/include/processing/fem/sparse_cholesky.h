@@ -1,0 +1,79 @@
+// Sparse Cholesky factorisation of symmetric positive definite matrices through CHOLMOD
+// (SuiteSparse).
+//
+// The FEM solves K x = b many times with the same sparsity pattern and changing values
+// (co-rotation, strain-dependent parameters, contact penalties), and the material fitter (thesis
+// Appendix A) solves many right-hand sides with one factorisation. So the pattern is analysed once
+// (fill-reducing ordering + symbolic factorisation), the numeric factorisation is repeated, and
+// solves take one or many right-hand sides.
+//
+// Why not Eigen's CholmodSupport: we want hc::Status on failure (with the column where positive
+// definiteness was lost), no copies of the matrix, and reused solve workspaces (cholmod_solve2) so
+// that a solve allocates nothing in the steady state.
+#pragma once
+
+#include <Eigen/Core>
+#include <Eigen/SparseCore>
+#include <memory>
+
+#include "common/status.h"
+
+namespace hc::fem {
+
+// Column-major sparse matrix with int indices; the solver reads only its UPPER triangle (incl.
+// diagonal).
+using SparseMatrix = Eigen::SparseMatrix<double, Eigen::ColMajor, int>;
+
+class SparseCholesky {
+ public:
+  struct Options {
+    // CHOLMOD's automatic choice between simplicial and supernodal factorisation (CHOLMOD_AUTO)
+    // when false; force supernodal when true.
+    bool force_supernodal = false;
+  };
+
+  struct Summary {
+    int analyse_calls = 0;
+    int factorize_calls = 0;
+    double nnz_factor = 0;  // entries of L after the last analysis
+    double flops = 0;       // CHOLMOD's flop count of the numeric factorisation
+    bool supernodal = false;
+  };
+
+  SparseCholesky();
+  explicit SparseCholesky(const Options& options);
+  ~SparseCholesky();
+  SparseCholesky(SparseCholesky&&) noexcept;
+  SparseCholesky& operator=(SparseCholesky&&) noexcept;
+  SparseCholesky(const SparseCholesky&) = delete;
+  SparseCholesky& operator=(const SparseCholesky&) = delete;
+
+  // Symbolic analysis of `upper`'s pattern (square, compressed, upper triangle incl. the full
+  // diagonal). Values are ignored. Invalidates any previous factorisation. Fails on a non-square /
+  // uncompressed matrix or when CHOLMOD runs out of memory.
+  Status analyze(const SparseMatrix& upper);
+
+  // Numeric factorisation of `upper`, which must have exactly the pattern given to analyze() (same
+  // rows(), nonZeros()). Returns failed_precondition("... not positive definite (column k) ...")
+  // when the matrix is not SPD; the object then has no valid factorisation until the next success.
+  Status factorize(const SparseMatrix& upper);
+
+  // analyze() + factorize().
+  Status compute(const SparseMatrix& upper);
+
+  // x = A^{-1} b. b has rows() entries. Precondition for success: factorized().
+  Status solve(const Eigen::VectorXd& b, Eigen::VectorXd* x) const;
+  // X = A^{-1} B for many right-hand sides at once (B is rows() by k, column-major).
+  Status solve(const Eigen::MatrixXd& b, Eigen::MatrixXd* x) const;
+
+  bool analyzed() const;
+  bool factorized() const;
+  Eigen::Index rows() const;
+  const Summary& summary() const;
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace hc::fem
