@@ -414,6 +414,7 @@ StreamDecoder::Result StreamDecoder::next(const std::uint8_t** cursor, const std
     // Delimiter: one frame (or an over-long run, or nothing) ends here.
     if (overflow_) {
       overflow_ = false;
+      ++bytes_discarded_;  // the delimiter, as for any dropped frame
       *cursor = p;
       ++frames_bad_;
       ++errors_[static_cast<std::size_t>(DecodeError::kTooLong)];
