@@ -152,6 +152,15 @@ class Transport {
   virtual std::string describe() const = 0;
 };
 
+// A parsed "usb[:VVVV:PPPP[:SERIAL]]" device spec.
+struct UsbDeviceSpec {
+  std::uint16_t vendor_id = kUsbVendorId;
+  std::uint16_t product_id = kUsbProductId;
+  std::string serial;  // empty = any
+};
+// InvalidArgument naming the problem when `spec` is not of that form.
+Result<UsbDeviceSpec> parse_usb_spec(const std::string& spec);
+
 // Opens a libusb bulk transport. NotFound when no matching device is attached; Unavailable when
 // libusb cannot initialise or the device cannot be claimed. `spec` as OpenOptions::device.
 Result<std::unique_ptr<Transport>> open_usb_transport(const std::string& spec);
@@ -198,6 +207,7 @@ class FirmwareDevice {
 
  private:
   FirmwareDevice() = default;
+  Status handshake();
   Status send(Message msg);
   Status command(Message msg, std::chrono::microseconds timeout);
   Status read_some(std::chrono::microseconds timeout);
@@ -217,6 +227,7 @@ class FirmwareDevice {
   // Answer to the command in flight.
   std::optional<Message> reply_;
   std::uint16_t awaiting_seq_ = 0;
+  MessageType awaiting_type_ = MessageType::kHello;
   bool awaiting_ = false;
   // Min-delay clock offset (host_ns - device_us * 1000) over two rolling windows of
   // kOffsetWindowNs.
