@@ -458,6 +458,18 @@ Result<Chunk> decode_chunk(ByteSpan content) {
   r.records.assign(recs.begin(), recs.end());
   return r;
 }
+Result<ChunkView> decode_chunk_view(ByteSpan content) {
+  Cursor c(content, "Chunk");
+  ChunkView r;
+  HC_ASSIGN_OR_RETURN(r.message_start_time, c.u64("message_start_time"));
+  HC_ASSIGN_OR_RETURN(r.message_end_time, c.u64("message_end_time"));
+  HC_ASSIGN_OR_RETURN(r.uncompressed_size, c.u64("uncompressed_size"));
+  HC_ASSIGN_OR_RETURN(r.uncompressed_crc, c.u32("uncompressed_crc"));
+  HC_ASSIGN_OR_RETURN(r.compression, c.string("compression"));
+  HC_ASSIGN_OR_RETURN(const std::uint64_t n, c.u64("records"));
+  HC_ASSIGN_OR_RETURN(r.records, c.raw(n, "records"));
+  return r;
+}
 Result<MessageIndex> decode_message_index(ByteSpan content) {
   Cursor c(content, "MessageIndex");
   MessageIndex r;

@@ -14,6 +14,7 @@
 #include <deque>
 #include <limits>
 #include <mutex>
+#include <optional>
 #include <thread>
 
 #include <fmt/format.h>
@@ -141,58 +142,83 @@ class McapWriter::Impl {
 
   Result<std::uint16_t> add_schema(std::string_view name, std::string_view encoding,
                                    ByteSpan data) {
+    if (!schemas_.empty() && schemas_.rbegin()->first == 0xFFFF)
+      return failed_precondition("too many schemas (max 65535)");
+    Schema sc;
+    sc.id = static_cast<std::uint16_t>(schemas_.empty() ? 1 : schemas_.rbegin()->first + 1);
+    sc.name = std::string(name);
+    sc.encoding = std::string(encoding);
+    sc.data.assign(data.begin(), data.end());
+    const std::uint16_t id = sc.id;
+    HC_RETURN_IF_ERROR(add_schema_record(std::move(sc)));
+    return id;
+  }
+
+  Status add_schema_record(Schema sc) {
     HC_RETURN_IF_ERROR(check_open());
-    if (schemas_.size() >= 0xFFFF) return failed_precondition("too many schemas (max 65535)");
-    Schema s;
-    s.id = static_cast<std::uint16_t>(schemas_.size() + 1);
-    s.name = std::string(name);
-    s.encoding = std::string(encoding);
-    s.data.assign(data.begin(), data.end());
-    schemas_.push_back(std::move(s));
-    schema_written_.push_back(false);
-    return schemas_.back().id;
+    if (sc.id == 0) return invalid_argument("add_schema: schema id 0 is reserved");
+    if (schemas_.count(sc.id) != 0)
+      return invalid_argument(fmt::format("add_schema: schema id {} already exists", sc.id));
+    const std::uint16_t id = sc.id;
+    schemas_.emplace(id, SchemaState{std::move(sc), false});
+    return {};
   }
 
   Result<std::uint16_t> add_channel(std::string_view topic, std::string_view message_encoding,
                                     std::uint16_t schema_id, const StringMap& metadata) {
-    HC_RETURN_IF_ERROR(check_open());
-    if (schema_id > schemas_.size())
-      return invalid_argument(
-          fmt::format("add_channel '{}': unknown schema id {}", topic, schema_id));
-    if (channels_.size() >= 0x10000) return failed_precondition("too many channels (max 65536)");
-    for (const auto& c : channels_)
-      if (c.topic == topic)
-        return invalid_argument(fmt::format("add_channel: topic '{}' already exists", topic));
+    if (channel_count_ > 0 && max_channel_id_ == 0xFFFF)
+      return failed_precondition("too many channels (max 65536)");
     Channel c;
-    c.id = static_cast<std::uint16_t>(channels_.size());
+    c.id = static_cast<std::uint16_t>(channel_count_ == 0 ? 0 : max_channel_id_ + 1);
     c.schema_id = schema_id;
     c.topic = std::string(topic);
     c.message_encoding = std::string(message_encoding);
     c.metadata = metadata;
-    channels_.push_back(std::move(c));
-    channel_written_.push_back(false);
-    next_sequence_.push_back(0);
-    return channels_.back().id;
+    const std::uint16_t id = c.id;
+    HC_RETURN_IF_ERROR(add_channel_record(std::move(c)));
+    return id;
+  }
+
+  Status add_channel_record(Channel c) {
+    HC_RETURN_IF_ERROR(check_open());
+    if (c.schema_id != 0 && schemas_.count(c.schema_id) == 0)
+      return invalid_argument(
+          fmt::format("add_channel '{}': unknown schema id {}", c.topic, c.schema_id));
+    if (c.id < channels_.size() && channels_[c.id])
+      return invalid_argument(fmt::format("add_channel: channel id {} already exists", c.id));
+    for (const auto& other : channels_)
+      if (other && other->channel.topic == c.topic)
+        return invalid_argument(fmt::format("add_channel: topic '{}' already exists", c.topic));
+    if (c.id >= channels_.size()) channels_.resize(static_cast<std::size_t>(c.id) + 1);
+    max_channel_id_ = channel_count_ == 0 ? c.id : std::max(max_channel_id_, c.id);
+    ++channel_count_;
+    const std::uint16_t id = c.id;
+    channels_[id] = ChannelState{std::move(c), false, 0};
+    return {};
   }
 
   Status write_message(std::uint16_t channel_id, std::uint64_t log_time, std::uint64_t publish_time,
                        ByteSpan data, std::optional<std::uint32_t> sequence) {
     HC_RETURN_IF_ERROR(check_open());
-    if (channel_id >= channels_.size())
+    if (channel_id >= channels_.size() || !channels_[channel_id])
       return invalid_argument(fmt::format("write_message: unknown channel id {}", channel_id));
     if (!chunk_) chunk_ = std::make_shared<PendingChunk>();
     PendingChunk& c = *chunk_;
-    if (!channel_written_[channel_id]) {
-      const std::uint16_t sid = channels_[channel_id].schema_id;
-      if (sid != 0 && !schema_written_[sid - 1]) {
-        encode(schemas_[sid - 1], c.records);
-        schema_written_[sid - 1] = true;
+    ChannelState& cs = *channels_[channel_id];
+    if (!cs.written) {
+      const std::uint16_t sid = cs.channel.schema_id;
+      if (sid != 0) {
+        SchemaState& ss = schemas_.at(sid);
+        if (!ss.written) {
+          encode(ss.schema, c.records);
+          ss.written = true;
+        }
       }
-      encode(channels_[channel_id], c.records);
-      channel_written_[channel_id] = true;
+      encode(cs.channel, c.records);
+      cs.written = true;
     }
-    const std::uint32_t seq = sequence ? *sequence : next_sequence_[channel_id];
-    next_sequence_[channel_id] = seq + 1;
+    const std::uint32_t seq = sequence ? *sequence : cs.next_sequence;
+    cs.next_sequence = seq + 1;
     c.index[channel_id].emplace_back(log_time, c.records.size());
     c.records.reserve(c.records.size() + kRecordPrefixSize + 22 + data.size());
     encode_message(channel_id, seq, log_time, publish_time, data, c.records);
@@ -270,13 +296,14 @@ class McapWriter::Impl {
         offsets.push_back({static_cast<std::uint8_t>(op), offset_ + before, tail.size() - before});
     };
     group(Opcode::kSchema, [&] {
-      for (const auto& s : schemas_) encode(s, tail);
+      for (const auto& [id, ss] : schemas_) encode(ss.schema, tail);
     });
     group(Opcode::kChannel, [&] {
-      for (const auto& c : channels_) encode(c, tail);
+      for (const auto& cs : channels_)
+        if (cs) encode(cs->channel, tail);
     });
     stats_.schema_count = static_cast<std::uint16_t>(schemas_.size());
-    stats_.channel_count = static_cast<std::uint32_t>(channels_.size());
+    stats_.channel_count = channel_count_;
     stats_.chunk_count = static_cast<std::uint32_t>(chunk_indexes_.size());
     group(Opcode::kStatistics, [&] { encode(stats_, tail); });
     group(Opcode::kChunkIndex, [&] {
@@ -476,11 +503,19 @@ class McapWriter::Impl {
   Status failed_;  // a write error makes the writer refuse further work
   std::uint64_t offset_ = 0;
   std::uint32_t data_crc_ = 0;  // finalized CRC of the bytes written so far (crc of "" is 0)
-  std::vector<Schema> schemas_;
-  std::vector<bool> schema_written_;
-  std::vector<Channel> channels_;
-  std::vector<bool> channel_written_;
-  std::vector<std::uint32_t> next_sequence_;
+  struct SchemaState {
+    Schema schema;
+    bool written = false;  // already in the data section
+  };
+  struct ChannelState {
+    Channel channel;
+    bool written = false;
+    std::uint32_t next_sequence = 0;
+  };
+  std::map<std::uint16_t, SchemaState> schemas_;
+  std::vector<std::optional<ChannelState>> channels_;  // by id
+  std::uint32_t channel_count_ = 0;
+  std::uint16_t max_channel_id_ = 0;
   std::shared_ptr<PendingChunk> chunk_;
   Statistics stats_;
   std::vector<ChunkIndex> chunk_indexes_;
@@ -522,6 +557,10 @@ Result<std::uint16_t> McapWriter::add_channel(std::string_view topic,
                                               std::string_view message_encoding,
                                               std::uint16_t schema_id, const StringMap& metadata) {
   return impl_->add_channel(topic, message_encoding, schema_id, metadata);
+}
+Status McapWriter::add_schema(const Schema& schema) { return impl_->add_schema_record(schema); }
+Status McapWriter::add_channel(const Channel& channel) {
+  return impl_->add_channel_record(channel);
 }
 Status McapWriter::write_message(std::uint16_t channel_id, std::uint64_t log_time_ns,
                                  std::uint64_t publish_time_ns, ByteSpan data,

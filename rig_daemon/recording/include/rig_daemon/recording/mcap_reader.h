@@ -71,11 +71,14 @@ class McapReader {
     std::uint64_t max_record_size = 1ull << 32;
     // Check Chunk.uncompressed_crc whenever a chunk is decompressed.
     bool check_chunk_crc = true;
+    // A file without its Footer / closing magic (cut off by a crash) is refused unless this is
+    // set; then it is summarised by a linear scan of its complete records.
+    bool allow_truncated = false;
   };
 
   // Opens `path`, checks both magics, reads the Header and, when the Footer points at one, the
   // summary section (schemas, channels, statistics, indexes). A file with no summary (or a
-  // truncated file, when `allow_truncated`) is summarised by a linear scan instead.
+  // truncated file, with Options::allow_truncated) is summarised by a linear scan instead.
   static Result<McapReader> open(const std::filesystem::path& path, const Options& options);
   static Result<McapReader> open(const std::filesystem::path& path);
   // Reads from memory (tests, fuzzing). The bytes are copied.
@@ -102,6 +105,10 @@ class McapReader {
   // (or linearly scanning when there are none).
   Result<std::map<std::uint16_t, std::uint64_t>> message_counts() const;
 
+  // The MessageIndex records stored after a chunk (located through its ChunkIndex), without
+  // decompressing the chunk.
+  Result<std::vector<MessageIndex>> read_message_indexes(const ChunkIndex& index) const;
+
   // Every Metadata record (through the metadata indexes, or linearly without a summary).
   Result<std::vector<Metadata>> read_metadata() const;
   // The Attachment at an index entry; its CRC is checked.
@@ -127,6 +134,7 @@ struct LinearScanResult {
   std::uint64_t end_offset = 0;  // offset just past the last complete record read
   bool reached_footer = false;   // a Footer and closing magic were found
   bool truncated = false;        // the file ended inside a record (or before the Footer)
+  std::uint8_t truncated_opcode = 0;  // opcode of the record cut off (0: none / only a prefix)
   std::string stop_reason;       // why the scan stopped early, with the offset ("" when complete)
 };
 

@@ -249,6 +249,17 @@ struct MessageView {
 };
 Result<MessageView> decode_message_view(ByteSpan content);
 
+// A Chunk record's fields with `records` viewing the caller's buffer (no copy).
+struct ChunkView {
+  std::uint64_t message_start_time = 0;
+  std::uint64_t message_end_time = 0;
+  std::uint64_t uncompressed_size = 0;
+  std::uint32_t uncompressed_crc = 0;
+  std::string compression;
+  ByteSpan records;
+};
+Result<ChunkView> decode_chunk_view(ByteSpan content);
+
 // One record located in a buffer: opcode, content view, and its total size (prefix included).
 struct RecordView {
   std::uint8_t opcode = 0;

@@ -44,6 +44,7 @@ struct RecoverReport {
   std::uint64_t chunks_kept = 0;
   std::uint64_t chunks_dropped = 0;  // incomplete or failing their CRC / decompression
   std::uint64_t messages_kept = 0;
+  std::uint64_t messages_dropped = 0;  // in kept chunks but on a channel whose definition was lost
   std::uint64_t metadata_kept = 0;
   std::uint64_t attachments_kept = 0;
   std::uint64_t input_bytes_used = 0;  // offset where the usable input ended
@@ -107,5 +108,34 @@ struct SessionInfo {
 // message indexes (no decompression) when the file has them, else from reading the messages.
 // Device stats: see session_conventions.h.
 Result<SessionInfo> session_info(const std::filesystem::path& path);
+
+// ---- export ----
+struct ExportReport {
+  std::string topic;
+  std::string kind;  // "csv" (JSON time series), "png" (raw frames), "image" (compressed frames)
+  std::uint64_t messages = 0;
+  std::vector<std::filesystem::path> files;  // written, in order
+  Json to_json() const;
+};
+
+// Writes one channel of a session into `out_dir` (created if missing); file names start with the
+// topic made file-safe ("/ft/wrench" -> "ft_wrench"):
+// * JSON channels: "<name>.csv" with columns log_time_ns, publish_time_ns, sequence, then every
+//   field of the messages flattened ("force.x", "values[2]"), in order of first appearance; a
+//   message without a field leaves its cell empty.
+// * foxglove.RawImage: "<name>_<index 6 digits>.png" per frame (mono8/mono16/rgb8/bgr8/rgba8/bgra8
+//   and 8UC1/16UC1/8UC3) plus "<name>_frames.csv" (file, log_time_ns, publish_time_ns, sequence,
+//   device timestamp_ns, width, height, encoding).
+// * foxglove.CompressedImage: the stored bytes as "<name>_<index>.<format>" plus the index CSV.
+// Each file is written atomically. Fails with not_found for an unknown topic and unsupported for
+// another encoding.
+Result<ExportReport> export_channel(const std::filesystem::path& mcap, std::string_view topic,
+                                    const std::filesystem::path& out_dir);
+
+// Encodes an 8- or 16-bit image as PNG bytes (libpng's simplified API). `channels` 1 (gray),
+// 3 (RGB) or 4 (RGBA); `bgr` swaps to BGR(A) order; 16-bit samples are little-endian. `step` is
+// bytes per row.
+Result<std::string> encode_png(std::uint32_t width, std::uint32_t height, int channels,
+                               int bit_depth, bool bgr, std::uint32_t step, ByteSpan pixels);
 
 }  // namespace hc::recording

@@ -86,6 +86,12 @@ class McapWriter {
   Result<std::uint16_t> add_channel(std::string_view topic, std::string_view message_encoding,
                                     std::uint16_t schema_id, const StringMap& metadata = {});
 
+  // Registers a schema / channel with the id it already has (recover, re-recording a replay):
+  // fails on an id or topic already registered, schema id 0, or a channel's unknown schema id.
+  // Mixing with the id-assigning overloads above is fine: those hand out max id + 1.
+  Status add_schema(const Schema& schema);
+  Status add_channel(const Channel& channel);
+
   // Appends one message to the open chunk (closing it first if it is full). `channel_id` must come
   // from add_channel(). log_time may go backwards between calls (chunk time ranges and message
   // indexes stay correct); readers in log-time order sort.
