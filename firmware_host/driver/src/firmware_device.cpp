@@ -121,7 +121,7 @@ Status TriggerConfig::validate(const HelloReply* info) const {
                             " ms minimum");
   if (info != nullptr) {
     if (info->num_trigger_lines < 8 && (lines_mask >> info->num_trigger_lines) != 0)
-      return invalid_argument("trigger lines_mask 0x" + std::to_string(lines_mask) +
+      return invalid_argument("trigger lines_mask " + std::to_string(lines_mask) +
                               " names lines the device lacks (it has " +
                               std::to_string(info->num_trigger_lines) + ")");
     if (info->num_adc_channels < 8 && (adc_channels_mask >> info->num_adc_channels) != 0)
