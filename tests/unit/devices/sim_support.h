@@ -1,0 +1,45 @@
+// Helpers for the device tests: a deterministic simulated world and devices made through the
+// registry, configured from YAML.
+#pragma once
+
+#include <gtest/gtest.h>
+
+#include <memory>
+#include <string>
+
+#include "rig_daemon/devices/registry.h"
+#include "rig_daemon/devices/sim_world.h"
+
+namespace hc::devices::testing {
+
+struct SimRig {
+  explicit SimRig(std::uint64_t seed = 7, sim::WorldOptions options = {}) {
+    options.seed = seed;
+    clock = std::make_shared<SimulatedClock>(1'000'000'000);
+    world = std::make_shared<sim::World>(options, clock);
+    EXPECT_TRUE(register_sim_backends(registry).ok());
+  }
+  DeviceContext context(const std::string& name, const std::string& backend = "sim") const {
+    DeviceContext ctx;
+    ctx.name = name;
+    ctx.backend = backend;
+    ctx.clock = clock;
+    ctx.world = world;
+    return ctx;
+  }
+  template <typename D>
+  std::unique_ptr<D> make(const std::string& name, const std::string& yaml = "{}") {
+    Result<std::unique_ptr<D>> made = registry.create<D>(context(name));
+    EXPECT_TRUE(made.ok()) << made.status().to_string();
+    if (!made.ok()) return nullptr;
+    Status s = configure_from_yaml(**made, yaml, name);
+    EXPECT_TRUE(s.ok()) << s.to_string();
+    return std::move(made).value();
+  }
+
+  std::shared_ptr<SimulatedClock> clock;
+  std::shared_ptr<sim::World> world;
+  BackendRegistry registry;
+};
+
+}  // namespace hc::devices::testing
