@@ -1,0 +1,197 @@
+// Plans and rig configs: the shipped examples read, defaults hold, and every malformed plan is
+// rejected with "FILE:LINE: key: what".
+#include <gtest/gtest.h>
+
+#include <string>
+
+#include "rig_daemon/daemon/plan.h"
+#include "rig_daemon/daemon/rig_config.h"
+#include "test_data.h"
+
+namespace hc::rig {
+namespace {
+
+std::filesystem::path example(const std::string& name) {
+  return hc::testing::source_dir() / "rig_daemon/examples" / name;
+}
+
+TEST(Plan, ExampleAutomatedPlanReads) {
+  Result<Plan> plan = load_plan(example("automated_block.yaml"));
+  ASSERT_TRUE(plan.ok()) << plan.status().to_string();
+  EXPECT_EQ(plan->protocol, Protocol::kAutomated);
+  EXPECT_EQ(plan->name, "silicone_block");
+  EXPECT_EQ(plan->automated.locations.size(), 3u);
+  EXPECT_EQ(plan->automated.steps, 30);
+  EXPECT_EQ(plan->automated.cameras.size(), 7u);  // thesis 5.6: seven Basler cameras
+  // 3 locations x 2 levels x 30 steps x 1 frame per step.
+  EXPECT_EQ(plan->expected_triggers(), 180);
+  EXPECT_EQ(plan->specimen.at("material"), "Tango Black Plus");
+  EXPECT_FALSE(plan->source_text.empty());
+}
+
+TEST(Plan, ExampleHandHeldPlanReads) {
+  Result<Plan> plan = load_plan(example("hand_held_face.yaml"));
+  ASSERT_TRUE(plan.ok()) << plan.status().to_string();
+  EXPECT_EQ(plan->protocol, Protocol::kHandHeld);
+  EXPECT_EQ(plan->hand_held.cameras.size(), 3u);  // thesis 4.4: trinocular system
+  EXPECT_DOUBLE_EQ(plan->hand_held.trigger.rate_hz, 5.0);
+  EXPECT_EQ(plan->expected_triggers(), 20);  // 5 Hz x 4 s
+}
+
+TEST(Plan, DirectionIsNormalised) {
+  Result<Plan> plan = parse_plan(R"(protocol: automated
+locations: [{position_m: [0, 0, 0.05], direction: [0, 3, -4]}]
+force_levels_n: [10]
+steps: 30
+max_force_n: 20
+workspace: {min_m: [-1, -1, 0], max_m: [1, 1, 1]}
+)",
+                                 "p.yaml");
+  ASSERT_TRUE(plan.ok()) << plan.status().to_string();
+  // (0, 3, -4) / 5, exact in binary to within one ulp.
+  EXPECT_NEAR(plan->automated.locations[0].direction[1], 0.6, 1e-15);
+  EXPECT_NEAR(plan->automated.locations[0].direction[2], -0.8, 1e-15);
+}
+
+struct BadPlan {
+  const char* name;
+  const char* yaml;
+  const char* expected;  // substring of the message
+};
+
+class BadPlans : public ::testing::TestWithParam<BadPlan> {};
+
+TEST_P(BadPlans, AreRejectedWithFileLineAndKey) {
+  Result<Plan> plan = parse_plan(GetParam().yaml, "bad.yaml");
+  ASSERT_FALSE(plan.ok());
+  EXPECT_EQ(plan.status().code(), StatusCode::kInvalidArgument);
+  EXPECT_NE(plan.status().message().find(GetParam().expected), std::string::npos)
+      << plan.status().message();
+  EXPECT_EQ(plan.status().message().rfind("bad.yaml:", 0), 0u) << plan.status().message();
+}
+
+constexpr const char* kAutoTail = R"(
+force_levels_n: [10]
+max_force_n: 20
+workspace: {min_m: [-1, -1, 0], max_m: [1, 1, 1]}
+locations: [{position_m: [0, 0, 0.05]}]
+)";
+
+const std::string kTooFew = std::string("protocol: automated\nsteps: 29") + kAutoTail;
+const std::string kTooMany = std::string("protocol: automated\nsteps: 201") + kAutoTail;
+
+INSTANTIATE_TEST_SUITE_P(
+    Plan, BadPlans,
+    ::testing::Values(
+        BadPlan{"no_protocol", "name: x\n", "bad.yaml:1: protocol: required key is missing"},
+        BadPlan{"unknown_protocol", "protocol: robotic\n", "bad.yaml:1: protocol: expected one of"},
+        BadPlan{"steps_too_few", kTooFew.c_str(),
+                "bad.yaml:2: steps: expected an integer in [30, 200]"},
+        BadPlan{"steps_too_many", kTooMany.c_str(), "steps: expected an integer in [30, 200]"},
+        BadPlan{"rate_zero",
+                "protocol: hand_held\ntrigger: {rate_hz: 0}\nduration_s: 1\ncameras: [c]\n",
+                "bad.yaml:2: trigger.rate_hz: expected a number in (0, 1000]"},
+        BadPlan{"rate_text",
+                "protocol: hand_held\ntrigger: {rate_hz: fast}\nduration_s: 1\ncameras: [c]\n",
+                "trigger.rate_hz: expected a number"},
+        BadPlan{"pulse_too_long",
+                "protocol: hand_held\ntrigger: {rate_hz: 100, pulse_width_s: 0.02}\n"
+                "duration_s: 1\ncameras: [c]\n",
+                "pulse_width_s must be shorter than the trigger period"},
+        BadPlan{"typo_key",
+                "protocol: hand_held\ntrigger: {rate_hz: 1}\nduration_s: 1\ncameras: [c]\n"
+                "duraton_s: 2\n",
+                "bad.yaml:5: unknown key 'duraton_s'"},
+        BadPlan{"level_over_max",
+                "protocol: automated\nsteps: 30\nforce_levels_n: [10, 30]\nmax_force_n: 20\n"
+                "workspace: {min_m: [-1, -1, 0], max_m: [1, 1, 1]}\n"
+                "locations: [{position_m: [0, 0, 0.05]}]\n",
+                "bad.yaml:3: force_levels_n: every level must be at most max_force_n"},
+        BadPlan{"force_over_sensor",
+                "protocol: automated\nsteps: 30\nforce_levels_n: [10]\nmax_force_n: 200\n"
+                "workspace: {min_m: [-1, -1, 0], max_m: [1, 1, 1]}\n"
+                "locations: [{position_m: [0, 0, 0.05]}]\n",
+                "bad.yaml:4: max_force_n: expected a number in (0, 125]"},
+        BadPlan{"outside_workspace",
+                "protocol: automated\nsteps: 30\nforce_levels_n: [10]\nmax_force_n: 20\n"
+                "workspace: {min_m: [-1, -1, 0], max_m: [1, 1, 1]}\n"
+                "locations:\n  - {position_m: [0, 0, 0.05]}\n  - {position_m: [0, 0, 1.5]}\n",
+                "bad.yaml:8: locations[1].position_m: outside the plan's workspace box"},
+        BadPlan{"inverted_box",
+                "protocol: automated\nsteps: 30\nforce_levels_n: [10]\nmax_force_n: 20\n"
+                "workspace: {min_m: [-1, -1, 1], max_m: [1, 1, 0]}\n"
+                "locations: [{position_m: [0, 0, 0.05]}]\n",
+                "bad.yaml:5: workspace: max_m.z must be greater than min_m.z"},
+        BadPlan{"zero_direction",
+                "protocol: automated\nsteps: 30\nforce_levels_n: [10]\nmax_force_n: 20\n"
+                "workspace: {min_m: [-1, -1, 0], max_m: [1, 1, 1]}\n"
+                "locations: [{position_m: [0, 0, 0.05], direction: [0, 0, 0]}]\n",
+                "locations[0].direction: expected a non-zero vector"},
+        BadPlan{"bad_name", "protocol: hand_held\nname: ../etc\n", "name: expected 1-128"},
+        BadPlan{"not_yaml", "protocol: [hand_held\n", "invalid YAML"}),
+    [](const ::testing::TestParamInfo<BadPlan>& p) { return std::string(p.param.name); });
+
+TEST(RigConfig, EmbeddedDefaultIsAllSimulated) {
+  Result<RigConfig> rig = embedded_default_rig_config();
+  ASSERT_TRUE(rig.ok()) << rig.status().to_string();
+  EXPECT_EQ(rig->devices.size(), 11u);
+  for (const DeviceConfig& d : rig->devices) EXPECT_EQ(d.backend, "sim") << d.name;
+  EXPECT_EQ(rig->sessions_dir, std::filesystem::path("./sessions"));
+  EXPECT_EQ(default_socket_path(*rig), std::filesystem::path("./sessions/rigd.sock"));
+  ASSERT_NE(rig->first(DeviceKind::kArm), nullptr);
+  EXPECT_EQ(rig->first(DeviceKind::kArm)->name, "arm");
+}
+
+TEST(RigConfig, ExampleMatchesEmbeddedDefault) {
+  Result<RigConfig> example_rig = load_rig_config(example("rig_sim.yaml"));
+  ASSERT_TRUE(example_rig.ok()) << example_rig.status().to_string();
+  Result<RigConfig> def = embedded_default_rig_config();
+  ASSERT_TRUE(def.ok());
+  Json a = example_rig->to_json(), b = def->to_json();
+  a.erase("source");
+  b.erase("source");
+  EXPECT_EQ(a, b);
+}
+
+TEST(RigConfig, BadConfigsNameTheKey) {
+  const struct {
+    const char* yaml;
+    const char* expected;
+  } cases[] = {
+      {"workspace: {min_m: [0, 0, 0], max_m: [1, 1, 1]}\n",
+       "rig.yaml:1: devices: expected a map of devices"},
+      {"devices:\n  cam0: {kind: webcam, backend: sim}\n"
+       "workspace: {min_m: [0, 0, 0], max_m: [1, 1, 1]}\n",
+       "rig.yaml:2: devices.cam0.kind: expected one of"},
+      {"devices:\n  cam0: {kind: camera}\nworkspace: {min_m: [0, 0, 0], max_m: [1, 1, 1]}\n",
+       "rig.yaml:2: devices.cam0.backend: required key is missing"},
+      {"devices:\n  arm: {kind: arm, backend: sim}\n"
+       "workspace: {min_m: [0, 0, 0], max_m: [1, 1, 1]}\nmax_force_n: -3\n",
+       "rig.yaml:4: max_force_n: expected a number in (0, 125]"},
+      {"devices:\n  arm: {kind: arm, backend: sim}\n"
+       "workspace: {min_m: [0, 0, 0], max_m: [1, 1, 1]}\ncompression: gzip\n",
+       "rig.yaml:4: compression: expected one of"},
+      {"devices:\n  arm: {kind: arm, backend: sim}\n"
+       "workspace: {min_m: [0, 0, 0], max_m: [1, 1, 1]}\ncontrol_period_s: 0.01\n"
+       "stall_timeout_s: 0.005\n",
+       "stall_timeout_s: must be at least control_period_s"},
+  };
+  for (const auto& c : cases) {
+    Result<RigConfig> rig = parse_rig_config(c.yaml, "rig.yaml");
+    ASSERT_FALSE(rig.ok()) << c.yaml;
+    EXPECT_NE(rig.status().message().find(c.expected), std::string::npos) << rig.status().message();
+  }
+}
+
+TEST(Workspace, ContainsAndIntersect) {
+  WorkspaceBox a{{0, 0, 0}, {1, 1, 1}}, b{{0.5, -1, 0.2}, {2, 0.5, 0.8}};
+  const WorkspaceBox c = a.intersect(b);
+  EXPECT_EQ(c.min_m, (std::array<double, 3>{0.5, 0, 0.2}));
+  EXPECT_EQ(c.max_m, (std::array<double, 3>{1, 0.5, 0.8}));
+  EXPECT_TRUE(c.contains({0.7, 0.1, 0.5}));
+  EXPECT_FALSE(c.contains({0.4, 0.1, 0.5}));
+  EXPECT_TRUE(a.intersect(WorkspaceBox{{2, 2, 2}, {3, 3, 3}}).empty());
+}
+
+}  // namespace
+}  // namespace hc::rig
