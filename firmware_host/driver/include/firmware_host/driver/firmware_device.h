@@ -19,7 +19,8 @@
 // With the simulator in SimClock::kVirtual, the "host clock" is virtual too (host_epoch_ns +
 // virtual µs), so tests are deterministic; see SimClock.
 //
-// Threading: a FirmwareDevice is not thread-safe; use it from one thread (or guard it).
+// Threading: a FirmwareDevice is not thread-safe; use it from one thread, or share one board
+// between a trigger and an FSR consumer through SharedFirmwareDevice (shared_device.h).
 #pragma once
 
 #include <chrono>
@@ -198,6 +199,9 @@ class FirmwareDevice {
   LinkStats link_stats() const;
   // The simulator behind a "sim" device (fault injection, recorded GPIO edges); nullptr for USB.
   Simulator* simulator() { return simulator_; }
+
+  // The transport's host clock (ns): steady_clock, or the virtual clock of a kVirtual simulator.
+  std::int64_t now_ns() const { return transport_ ? transport_->now_ns() : host_monotonic_ns(); }
 
   // Converts a firmware timestamp to host monotonic ns with the current offset estimate.
   std::int64_t device_to_host_ns(std::uint64_t device_time_us) const;
