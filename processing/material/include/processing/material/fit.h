@@ -1,0 +1,174 @@
+// Per-example material parameter estimation (thesis Sec. 4.3.1, Eq. 4.10, Appendix A):
+//
+//   p̂ = argmin_p  Σ_i ‖x_i(p, F̄) − x̄_i‖² / s²  +  γ ‖L q(p)‖²
+//
+// over one (λ_e, α_e) per tetrahedron, where x(p, F̄) are the node positions of the linear
+// co-rotational model (processing/fem) under the example's measured nodal forces, with the element
+// rotations R_e taken from the measured configuration (Appendix A differentiates with R_e fixed);
+// the sum runs over visible, non-fixed nodes; s is the example's largest measured displacement (so
+// γ is dimensionless and comparable between examples); L is the umbrella Laplacian over tets
+// (w_ij = 1 iff tets i and j share a vertex, [Zhang 2004]).
+//
+// Physical validity (thesis Sec. 4.6) by reparameterisation rather than projection: the optimiser
+// works on q_e = (ln λ_e, logit(ν_e / ν_max)), so λ_e > 0 and 0 < ν_e = α_e/λ_e < ν_max < 0.5 for
+// every iterate; the regulariser acts on q (scale-free smoothness of log-stiffness).
+//
+// The Jacobian is analytic (Appendix A, Eq. A.2–A.3): with u_e = R_eᵀ x_e − X_e,
+//   ∂x/∂λ_e = −K⁻¹ [R_e V_e B_eᵀ G B_e u_e]_e,   ∂x/∂α_e = −K⁻¹ [R_e V_e B_eᵀ H B_e u_e]_e,
+// restricted to free dofs (fixed nodes' rows and columns drop out: their known positions are part
+// of the right-hand side, the "slight modification" of Appendix A's last paragraph). One Cholesky
+// factorisation of K serves all right-hand sides; whichever is smaller is solved for: the measured
+// dofs (Z = K⁻¹ Sᵀ, then J = −Zᵀ G) or the parameter columns (K⁻¹ G, then rows S).
+#pragma once
+
+#include <Eigen/Core>
+#include <Eigen/SparseCore>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "common/progress.h"
+#include "common/status.h"
+#include "common/tet_mesh.h"
+#include "processing/fem/corotational.h"
+#include "processing/material/material.h"
+#include "processing/material/samples.h"
+
+namespace hc::material {
+
+// Umbrella Laplacian over tets: L_ii = #neighbours, L_ij = −1 iff tets i ≠ j share a vertex.
+Eigen::SparseMatrix<double> tet_umbrella_laplacian(const TetMesh& mesh);
+
+// One example's fitting problem: the co-rotational model under the example's forces and fixed nodes
+// with rotations frozen at the measured configuration, the measured dofs and their targets.
+class ExampleProblem {
+ public:
+  // Estimates a uniform stiffness from one linear solve (see stiffness_guess()), simulates the
+  // example once with it (co-rotational) to fill occluded nodes' positions of the reference
+  // configuration, and takes the rotations R_e from that configuration (measured positions where
+  // visible). Fails when the example has no fixed node, no measured free node, no measured
+  // displacement, or displacements that do not follow the forces, or the FEM cannot be built.
+  static Result<ExampleProblem> create(const TetMesh& mesh, const Example& example,
+                                       double poisson_guess = 0.3);
+  ExampleProblem(ExampleProblem&&) noexcept;
+  ExampleProblem& operator=(ExampleProblem&&) noexcept;
+  ~ExampleProblem();
+
+  const TetMesh& mesh() const;
+  Eigen::Index num_elements() const;
+  Eigen::Index num_measurements() const;  // measured scalar coordinates (3 per measured node)
+  double scale_m() const;                 // s: the example's largest measured displacement (m)
+
+  // Solves the linear co-rotational system at per-element parameters `p` (size num_elements()),
+  // and writes the measured coordinates minus their targets (m, unscaled) to *residual.
+  // failed_precondition when K is not positive definite.
+  Status simulate(const std::vector<LambdaAlpha>& p, Eigen::VectorXd* residual);
+  // ∂(measured coordinates)/∂(λ_0, α_0, λ_1, α_1, ...) at the last simulate(), num_measurements()
+  // by 2·num_elements() (m/Pa). `groups` (optional, size num_elements(), values 0..k−1) ties
+  // elements together: column pairs are then summed per group (k groups → 2k columns).
+  Status jacobian(Eigen::MatrixXd* j, const std::vector<int>* groups = nullptr,
+                  int num_groups = 0) const;
+  // Positions (#N by 3) and rotated-frame strains (#T by 6) of the last simulate().
+  const MatrixX3d& positions() const;
+  Eigen::Matrix<double, Eigen::Dynamic, 6> strains() const;
+  // The uniform (λ, α) whose linear (R = I) displacements best match the measured ones in the
+  // least-squares sense, at ν = poisson_guess (displacements scale with 1/λ at fixed ν).
+  const LambdaAlpha& stiffness_guess() const;
+
+ private:
+  struct Impl;
+  explicit ExampleProblem(std::unique_ptr<Impl> impl);
+  std::unique_ptr<Impl> impl_;
+};
+
+enum class FitBackend { kOwnLm, kCeres };
+
+struct ParameterFitOptions {
+  double regularization = 1e-3;  // γ (dimensionless, see above)
+  int max_iterations = 40;
+  double function_tolerance = 1e-7;   // stop when an accepted step lowers the cost by less (rel.)
+  double parameter_tolerance = 1e-8;  // stop when ‖Δq‖ ≤ tol (‖q‖ + tol)
+  double max_poisson = kDefaultMaxPoisson;
+  double initial_poisson = 0.3;
+  // Own LM: dense normal equations up to this many parameters, matrix-free preconditioned CG above.
+  int dense_parameter_limit = 2500;
+  int cg_max_iterations = 400;
+  double cg_relative_tolerance = 1e-8;
+  FitBackend backend = FitBackend::kOwnLm;
+
+  Status validate() const;
+};
+
+struct ParameterFitSummary {
+  bool usable = false;
+  std::string message;  // why it stopped
+  int iterations = 0;
+  double initial_cost = 0;
+  double final_cost = 0;
+  double rms_error_m = 0;  // over measured coordinates (per node: ‖x − x̄‖ RMS)
+  double max_error_m = 0;  // largest node distance
+  double time_s = 0;
+};
+
+// Fits one (λ, α) shared by all elements (the "average-fit linear co-rotational model") to the
+// given examples jointly (Levenberg–Marquardt on 2 parameters; problems must describe the same
+// mesh). Starts from the linear-solve stiffness guess of the first problem.
+Result<LambdaAlpha> fit_homogeneous(std::vector<ExampleProblem*> problems,
+                                    const ParameterFitOptions& options,
+                                    ParameterFitSummary* summary = nullptr);
+
+// Fits per-element parameters to one example (Eq. 4.10), starting from `initial` (size #T, or 1
+// for uniform). On return `*params` holds the estimate (physically valid).
+Status fit_example(ExampleProblem* problem, const std::vector<LambdaAlpha>& initial,
+                   const ParameterFitOptions& options, std::vector<LambdaAlpha>* params,
+                   ParameterFitSummary* summary = nullptr);
+
+// ---- The heterogeneous pipeline (Sec. 4.3): per example fit, then per element RBF ----
+
+struct HeterogeneousFitOptions {
+  ParameterFitOptions parameters;
+  struct RbfOptions {
+    double tolerance = 0.05;
+    int max_basis = 12;
+  } rbf;
+  int threads = 0;  // examples fitted in parallel (0: TBB's default)
+  ProgressReporter* progress = nullptr;
+  Status validate() const;
+};
+
+struct HeterogeneousFitSummary {
+  double rms_error_m = 0;  // per-example fits: RMS node position error over all measurements
+  double max_error_m = 0;
+  double mean_basis_size = 0;
+  double time_s = 0;
+  double parameter_time_s = 0;
+  double rbf_time_s = 0;
+  std::vector<ParameterFitSummary> examples;
+};
+
+// Fits a heterogeneous material (one StrainRbf per tet) to all examples.
+Result<Material> fit_heterogeneous(const Samples& samples, const HeterogeneousFitOptions& options,
+                                   HeterogeneousFitSummary* summary = nullptr);
+
+// ---- Evaluation: simulate each example's forces with a material and compare ----
+
+struct EvaluateOptions {
+  int steps = 8;  // load increments (processing/fem incremental loading, nodal forces)
+  ProgressReporter* progress = nullptr;
+};
+
+struct EvaluateSummary {
+  double rms_error_m = 0;  // RMS node distance over the visible, non-fixed nodes of all examples
+  double max_error_m = 0;
+  double max_displacement_m = 0;  // largest measured displacement over all examples
+  double error_rel_max_disp = 0;  // rms_error_m / max_displacement_m (thesis Sec. 4.5)
+  std::vector<double> example_rms_error_m;
+  std::vector<MatrixX3d> positions;  // simulated positions per example
+  double time_s = 0;
+};
+
+// Fails when the material does not match the mesh (element count) or a simulation fails.
+Result<EvaluateSummary> evaluate_material(const fem::MaterialModel& material,
+                                          const Samples& samples, const EvaluateOptions& options);
+
+}  // namespace hc::material

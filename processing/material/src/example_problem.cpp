@@ -1,0 +1,238 @@
+#include <fmt/format.h>
+
+#include <algorithm>
+#include <cmath>
+#include <optional>
+
+#include "processing/material/fit.h"
+
+namespace hc::material {
+
+Eigen::SparseMatrix<double> tet_umbrella_laplacian(const TetMesh& mesh) {
+  const Eigen::Index t = mesh.num_tets();
+  std::vector<std::vector<int>> node_tets(static_cast<std::size_t>(mesh.num_nodes()));
+  for (Eigen::Index e = 0; e < t; ++e)
+    for (int k = 0; k < 4; ++k)
+      node_tets[static_cast<std::size_t>(mesh.tets(e, k))].push_back(static_cast<int>(e));
+  std::vector<Eigen::Triplet<double>> triplets;
+  std::vector<int> neighbours;
+  for (Eigen::Index e = 0; e < t; ++e) {
+    neighbours.clear();
+    for (int k = 0; k < 4; ++k)
+      for (int f : node_tets[static_cast<std::size_t>(mesh.tets(e, k))])
+        if (f != e) neighbours.push_back(f);
+    std::sort(neighbours.begin(), neighbours.end());
+    neighbours.erase(std::unique(neighbours.begin(), neighbours.end()), neighbours.end());
+    const auto row = static_cast<int>(e);
+    triplets.emplace_back(row, row, static_cast<double>(neighbours.size()));
+    for (int f : neighbours) triplets.emplace_back(row, f, -1.0);
+  }
+  Eigen::SparseMatrix<double> l(t, t);
+  l.setFromTriplets(triplets.begin(), triplets.end());
+  return l;
+}
+
+struct ExampleProblem::Impl {
+  explicit Impl(fem::CorotationalFem f) : fem(std::move(f)) {}
+  fem::CorotationalFem fem;
+  MatrixX3d forces;
+  std::vector<int> measured_nodes;
+  std::vector<int> measured_dofs;  // 3 per measured node, free-dof indices
+  Eigen::VectorXd target;          // measured coordinates
+  double scale = 0;
+  LambdaAlpha guess;
+  std::vector<fem::Matrix12d> kg, kh;
+  std::vector<std::array<int, 12>> dofs;
+
+  Status solve_at(const std::vector<LambdaAlpha>& p) {
+    HC_RETURN_IF_ERROR(fem.set_params(p));
+    fem.assemble();
+    HC_RETURN_IF_ERROR(fem.factorize());
+    return fem.solve(forces);
+  }
+  void measured(Eigen::VectorXd* out) const {
+    out->resize(static_cast<Eigen::Index>(measured_nodes.size()) * 3);
+    const MatrixX3d& x = fem.positions();
+    for (std::size_t i = 0; i < measured_nodes.size(); ++i)
+      out->segment<3>(3 * static_cast<Eigen::Index>(i)) = x.row(measured_nodes[i]).transpose();
+  }
+};
+
+ExampleProblem::ExampleProblem(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) {}
+ExampleProblem::ExampleProblem(ExampleProblem&&) noexcept = default;
+ExampleProblem& ExampleProblem::operator=(ExampleProblem&&) noexcept = default;
+ExampleProblem::~ExampleProblem() = default;
+
+Result<ExampleProblem> ExampleProblem::create(const TetMesh& mesh, const Example& example,
+                                              double poisson_guess) {
+  if (example.fixed_nodes.empty())
+    return invalid_argument("example has no fixed nodes: the fit needs an attached region");
+  if (example.positions_m.rows() != mesh.num_nodes() ||
+      example.visible.size() != static_cast<std::size_t>(mesh.num_nodes()))
+    return invalid_argument("example sizes do not match the mesh");
+  HC_ASSIGN_OR_RETURN(fem::CorotationalFem f,
+                      fem::CorotationalFem::create(mesh, example.fixed_nodes));
+  auto impl = std::make_unique<Impl>(std::move(f));
+  fem::CorotationalFem& fem = impl->fem;
+  impl->forces = MatrixX3d::Zero(mesh.num_nodes(), 3);
+  for (const NodalForce& nf : example.forces) impl->forces.row(nf.node) += nf.force_n.transpose();
+
+  std::vector<int> invisible;
+  for (Eigen::Index n = 0; n < mesh.num_nodes(); ++n) {
+    if (fem.is_fixed(n)) continue;
+    if (!example.visible[static_cast<std::size_t>(n)]) {
+      invisible.push_back(static_cast<int>(n));
+      continue;
+    }
+    impl->measured_nodes.push_back(static_cast<int>(n));
+    for (int a = 0; a < 3; ++a) impl->measured_dofs.push_back(fem.dof(n, a));
+  }
+  if (impl->measured_nodes.empty())
+    return invalid_argument("example has no visible free node to compare against");
+  const auto m = static_cast<Eigen::Index>(impl->measured_nodes.size());
+  impl->target.resize(3 * m);
+  Eigen::VectorXd measured_u(3 * m);
+  for (Eigen::Index i = 0; i < m; ++i) {
+    const int n = impl->measured_nodes[static_cast<std::size_t>(i)];
+    impl->target.segment<3>(3 * i) = example.positions_m.row(n).transpose();
+    measured_u.segment<3>(3 * i) = (example.positions_m.row(n) - mesh.nodes.row(n)).transpose();
+    impl->scale = std::max(impl->scale, measured_u.segment<3>(3 * i).norm());
+  }
+  if (!(impl->scale > 0)) return invalid_argument("example has no measured displacement");
+
+  // Uniform stiffness guess: linear FEM (R = I) at λ = 1 Pa; displacements scale with 1/λ.
+  fem.set_rotations_identity();
+  const LambdaAlpha unit{1.0, poisson_guess};
+  std::vector<LambdaAlpha> p(static_cast<std::size_t>(fem.num_elements()), unit);
+  HC_RETURN_IF_ERROR(impl->solve_at(p));
+  Eigen::VectorXd x1;
+  impl->measured(&x1);
+  Eigen::VectorXd rest(3 * m);
+  for (Eigen::Index i = 0; i < m; ++i)
+    rest.segment<3>(3 * i) =
+        mesh.nodes.row(impl->measured_nodes[static_cast<std::size_t>(i)]).transpose();
+  const Eigen::VectorXd u1 = x1 - rest;
+  const double c = u1.dot(measured_u) / u1.squaredNorm();
+  if (!(c > 0) || !std::isfinite(c))
+    return invalid_argument(
+        "measured displacements do not follow the applied forces (no positive stiffness fits)");
+  impl->guess = {1.0 / c, poisson_guess / c};
+
+  // Reference configuration for the rotations: measured where visible, simulated elsewhere.
+  MatrixX3d reference = mesh.nodes;
+  std::fill(p.begin(), p.end(), impl->guess);
+  if (!invisible.empty()) {
+    HC_RETURN_IF_ERROR(fem.set_params(p));
+    HC_RETURN_IF_ERROR(fem.set_positions(mesh.nodes));
+    // Non-convergence of the co-rotational iteration only makes the filled-in positions rougher.
+    (void)fem.solve_static(impl->forces, 20, 1e-6 * impl->scale);
+    for (int n : invisible) reference.row(n) = fem.positions().row(n);
+  }
+  for (int n : impl->measured_nodes) reference.row(n) = example.positions_m.row(n);
+  HC_RETURN_IF_ERROR(fem.set_positions(reference));
+  fem.update_rotations();
+
+  const Eigen::Index t = fem.num_elements();
+  impl->kg.resize(static_cast<std::size_t>(t));
+  impl->kh.resize(static_cast<std::size_t>(t));
+  impl->dofs.resize(static_cast<std::size_t>(t));
+  for (Eigen::Index e = 0; e < t; ++e) {
+    impl->kg[static_cast<std::size_t>(e)] = fem.stiffness_g(e);
+    impl->kh[static_cast<std::size_t>(e)] = fem.stiffness_h(e);
+    impl->dofs[static_cast<std::size_t>(e)] = fem.element_dofs(e);
+  }
+  return ExampleProblem(std::move(impl));
+}
+
+const TetMesh& ExampleProblem::mesh() const { return impl_->fem.mesh(); }
+Eigen::Index ExampleProblem::num_elements() const { return impl_->fem.num_elements(); }
+Eigen::Index ExampleProblem::num_measurements() const {
+  return static_cast<Eigen::Index>(impl_->measured_dofs.size());
+}
+double ExampleProblem::scale_m() const { return impl_->scale; }
+const LambdaAlpha& ExampleProblem::stiffness_guess() const { return impl_->guess; }
+const MatrixX3d& ExampleProblem::positions() const { return impl_->fem.positions(); }
+Eigen::Matrix<double, Eigen::Dynamic, 6> ExampleProblem::strains() const {
+  return impl_->fem.strains();
+}
+
+Status ExampleProblem::simulate(const std::vector<LambdaAlpha>& p, Eigen::VectorXd* residual) {
+  HC_RETURN_IF_ERROR(impl_->solve_at(p));
+  impl_->measured(residual);
+  *residual -= impl_->target;
+  return {};
+}
+
+Status ExampleProblem::jacobian(Eigen::MatrixXd* j, const std::vector<int>* groups,
+                                int num_groups) const {
+  const fem::CorotationalFem& fem = impl_->fem;
+  if (!fem.cholesky().factorized()) return failed_precondition("jacobian: call simulate() first");
+  const Eigen::Index t = fem.num_elements();
+  const Eigen::Index nf = fem.num_free_dofs();
+  const Eigen::Index m = num_measurements();
+  if (groups && static_cast<Eigen::Index>(groups->size()) != t)
+    return invalid_argument("jacobian: one group per element expected");
+  const Eigen::Index cols = 2 * (groups ? num_groups : t);
+  const auto col_of = [&](Eigen::Index e) -> Eigen::Index {
+    return 2 * (groups ? (*groups)[static_cast<std::size_t>(e)] : e);
+  };
+
+  // g_e = R_e (dK_e/dp) (R_eᵀ x_e − X_e) for p = λ_e and α_e (Appendix A, Eq. A.2–A.3).
+  std::vector<fem::Vector12d> g_lambda(static_cast<std::size_t>(t)),
+      g_alpha(static_cast<std::size_t>(t));
+  for (Eigen::Index e = 0; e < t; ++e) {
+    const Eigen::Matrix3d& r = fem.rotation(e);
+    const fem::Vector12d x = fem.current_positions(e);
+    const fem::Vector12d x0 = fem.rest_positions(e);
+    fem::Vector12d u;
+    for (int a = 0; a < 4; ++a)
+      u.segment<3>(3 * a) = r.transpose() * x.segment<3>(3 * a) - x0.segment<3>(3 * a);
+    const fem::Vector12d gl = impl_->kg[static_cast<std::size_t>(e)] * u;
+    const fem::Vector12d ga = impl_->kh[static_cast<std::size_t>(e)] * u;
+    for (int a = 0; a < 4; ++a) {
+      g_lambda[static_cast<std::size_t>(e)].segment<3>(3 * a) = r * gl.segment<3>(3 * a);
+      g_alpha[static_cast<std::size_t>(e)].segment<3>(3 * a) = r * ga.segment<3>(3 * a);
+    }
+  }
+
+  j->setZero(m, cols);
+  if (cols <= m) {
+    // Few parameter columns: solve K X = G, then keep the measured rows.
+    Eigen::MatrixXd g = Eigen::MatrixXd::Zero(nf, cols);
+    for (Eigen::Index e = 0; e < t; ++e) {
+      const auto& d = impl_->dofs[static_cast<std::size_t>(e)];
+      const Eigen::Index c = col_of(e);
+      for (int k = 0; k < 12; ++k) {
+        if (d[static_cast<std::size_t>(k)] < 0) continue;
+        g(d[static_cast<std::size_t>(k)], c) += g_lambda[static_cast<std::size_t>(e)](k);
+        g(d[static_cast<std::size_t>(k)], c + 1) += g_alpha[static_cast<std::size_t>(e)](k);
+      }
+    }
+    Eigen::MatrixXd x;
+    HC_RETURN_IF_ERROR(fem.cholesky().solve(g, &x));
+    for (Eigen::Index i = 0; i < m; ++i)
+      j->row(i) = -x.row(impl_->measured_dofs[static_cast<std::size_t>(i)]);
+    return {};
+  }
+  // Few measurements: Z = K⁻¹ Sᵀ (K symmetric), then column (e, p) = −Zᵀ g.
+  Eigen::MatrixXd s = Eigen::MatrixXd::Zero(nf, m);
+  for (Eigen::Index i = 0; i < m; ++i)
+    s(impl_->measured_dofs[static_cast<std::size_t>(i)], i) = 1.0;
+  Eigen::MatrixXd z;
+  HC_RETURN_IF_ERROR(fem.cholesky().solve(s, &z));
+  // zt is m by nf so that a dof's column is contiguous.
+  const Eigen::MatrixXd zt = z.transpose();
+  for (Eigen::Index e = 0; e < t; ++e) {
+    const auto& d = impl_->dofs[static_cast<std::size_t>(e)];
+    const Eigen::Index c = col_of(e);
+    for (int k = 0; k < 12; ++k) {
+      const int dof = d[static_cast<std::size_t>(k)];
+      if (dof < 0) continue;
+      j->col(c) -= g_lambda[static_cast<std::size_t>(e)](k) * zt.col(dof);
+      j->col(c + 1) -= g_alpha[static_cast<std::size_t>(e)](k) * zt.col(dof);
+    }
+  }
+  return {};
+}
+
+}  // namespace hc::material

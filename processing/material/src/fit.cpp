@@ -1,0 +1,462 @@
+// Levenberg–Marquardt for Eq. 4.10 (own implementation and a Ceres backend for comparison).
+//
+// Why an own LM next to Ceres: the data Jacobian is dense (every node moves with every element's
+// stiffness) while the regulariser is sparse; Ceres treats the data block as one residual block
+// over all 2T parameters, so its normal equations are a dense 2T×2T matrix factorised each
+// iteration, whereas the own LM can use a matrix-free CG on JᵀJ + γLᵀL for large meshes. The unit
+// tests and bench_material_fit time both on the same problem.
+#include <ceres/ceres.h>
+#include <fmt/format.h>
+
+#include <Eigen/Cholesky>
+#include <Eigen/SparseCore>
+#include <chrono>
+#include <cmath>
+
+#include "processing/material/fit.h"
+
+namespace hc::material {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+double sigmoid(double x) { return 1.0 / (1.0 + std::exp(-x)); }
+double logit(double y) { return std::log(y / (1.0 - y)); }
+
+// q = (ln λ, logit(ν/ν_max)) per element ↔ (λ, α).
+struct Reparam {
+  double max_poisson;
+  LambdaAlpha to_params(double q0, double q1) const {
+    const double lambda = std::exp(q0);
+    return {lambda, lambda * max_poisson * sigmoid(q1)};
+  }
+  Eigen::Vector2d to_q(const LambdaAlpha& p) const {
+    const double lambda = std::max(p.lambda, 1e-300);
+    double nu = p.alpha / lambda;
+    nu = std::clamp(nu / max_poisson, 1e-6, 1 - 1e-6);
+    return {std::log(lambda), logit(nu)};
+  }
+  // ∂(λ, α)/∂(q0, q1) applied to the (λ, α) columns of `j` in place (columns 2e, 2e+1 per block e).
+  void chain(double q0, double q1, Eigen::Ref<Eigen::MatrixXd> j2) const {
+    const double lambda = std::exp(q0);
+    const double s = sigmoid(q1);
+    const double alpha = lambda * max_poisson * s;
+    const Eigen::VectorXd dl = j2.col(0);
+    const Eigen::VectorXd da = j2.col(1);
+    j2.col(0) = lambda * dl + alpha * da;
+    j2.col(1) = lambda * max_poisson * s * (1 - s) * da;
+  }
+};
+
+std::vector<LambdaAlpha> params_of(const Reparam& rp, const Eigen::VectorXd& q) {
+  std::vector<LambdaAlpha> p(static_cast<std::size_t>(q.size() / 2));
+  for (std::size_t e = 0; e < p.size(); ++e)
+    p[e] =
+        rp.to_params(q(2 * static_cast<Eigen::Index>(e)), q(2 * static_cast<Eigen::Index>(e) + 1));
+  return p;
+}
+
+// Generic LM over q with data residuals r(q) (scaled) and a sparse quadratic regulariser
+// γ‖R q‖² (R may be empty).
+struct LmProblem {
+  std::function<Status(const Eigen::VectorXd& q, Eigen::VectorXd* r)> residual;
+  // Jacobian of the last residual() call's point (the LM re-evaluates when needed).
+  std::function<Status(const Eigen::VectorXd& q, Eigen::MatrixXd* j)> jacobian;
+  Eigen::SparseMatrix<double> reg;  // R (rows × n) already multiplied by sqrt(γ); may be 0×0
+};
+
+Status run_lm(const LmProblem& problem, const ParameterFitOptions& options, Eigen::VectorXd* q,
+              ParameterFitSummary* summary) {
+  const Eigen::Index n = q->size();
+  const bool has_reg = problem.reg.rows() > 0;
+  Eigen::SparseMatrix<double> rtr;
+  if (has_reg) rtr = problem.reg.transpose() * problem.reg;
+  const auto reg_cost = [&](const Eigen::VectorXd& v) {
+    return has_reg ? (problem.reg * v).squaredNorm() : 0.0;
+  };
+
+  Eigen::VectorXd r;
+  HC_RETURN_IF_ERROR(problem.residual(*q, &r));
+  double cost = r.squaredNorm() + reg_cost(*q);
+  summary->initial_cost = cost;
+  double mu = 1e-3, nu = 2;
+  bool at_current = true;
+  Eigen::MatrixXd j;
+  summary->message = "max iterations";
+  int it = 0;
+  bool done = false;
+  for (; it < options.max_iterations && !done; ++it) {
+    if (!at_current) HC_RETURN_IF_ERROR(problem.residual(*q, &r));
+    at_current = true;
+    HC_RETURN_IF_ERROR(problem.jacobian(*q, &j));
+    Eigen::VectorXd g = j.transpose() * r;
+    if (has_reg) g += rtr * *q;
+    Eigen::VectorXd diag = j.colwise().squaredNorm().transpose();
+    if (has_reg) diag += rtr.diagonal();
+    const double diag_floor = 1e-12 * std::max(diag.maxCoeff(), 1e-300);
+    for (Eigen::Index i = 0; i < n; ++i) diag(i) = std::max(diag(i), diag_floor);
+
+    const bool dense = n <= options.dense_parameter_limit;
+    Eigen::MatrixXd a;
+    if (dense) {
+      a = Eigen::MatrixXd::Zero(n, n);
+      a.selfadjointView<Eigen::Lower>().rankUpdate(j.transpose());
+      a.triangularView<Eigen::Upper>() = a.transpose();
+      if (has_reg) a += Eigen::MatrixXd(rtr);
+    }
+    bool accepted = false;
+    for (int attempt = 0; attempt < 30 && !accepted; ++attempt) {
+      Eigen::VectorXd delta;
+      if (dense) {
+        Eigen::MatrixXd am = a;
+        am.diagonal() += mu * diag;
+        Eigen::LLT<Eigen::MatrixXd> llt(am);
+        if (llt.info() != Eigen::Success) {
+          mu *= nu;
+          nu *= 2;
+          continue;
+        }
+        delta = llt.solve(-g);
+      } else {
+        // Matrix-free Jacobi-preconditioned CG on (JᵀJ + RᵀR + μD) δ = −g.
+        const Eigen::VectorXd precond =
+            (j.colwise().squaredNorm().transpose() +
+             (has_reg ? Eigen::VectorXd(rtr.diagonal()) : Eigen::VectorXd::Zero(n)) + mu * diag)
+                .cwiseMax(1e-300)
+                .cwiseInverse();
+        const auto apply = [&](const Eigen::VectorXd& v) {
+          Eigen::VectorXd out = j.transpose() * (j * v);
+          if (has_reg) out += rtr * v;
+          out += mu * diag.cwiseProduct(v);
+          return out;
+        };
+        delta = Eigen::VectorXd::Zero(n);
+        Eigen::VectorXd res = -g;
+        Eigen::VectorXd z = precond.cwiseProduct(res);
+        Eigen::VectorXd pdir = z;
+        double rz = res.dot(z);
+        const double stop =
+            options.cg_relative_tolerance * options.cg_relative_tolerance * g.squaredNorm();
+        for (int k = 0; k < options.cg_max_iterations && res.squaredNorm() > stop; ++k) {
+          const Eigen::VectorXd ap = apply(pdir);
+          const double step = rz / pdir.dot(ap);
+          delta += step * pdir;
+          res -= step * ap;
+          z = precond.cwiseProduct(res);
+          const double rz_new = res.dot(z);
+          pdir = z + (rz_new / rz) * pdir;
+          rz = rz_new;
+        }
+      }
+      const double predicted = -delta.dot(g) + mu * delta.dot(diag.cwiseProduct(delta));
+      const Eigen::VectorXd trial = *q + delta;
+      Eigen::VectorXd r_trial;
+      Status st = problem.residual(trial, &r_trial);
+      at_current = false;
+      const double cost_trial = st.ok() ? r_trial.squaredNorm() + reg_cost(trial) : INFINITY;
+      const double rho = (cost - cost_trial) / std::max(predicted, 1e-300);
+      if (st.ok() && cost_trial < cost) {
+        const double decrease = (cost - cost_trial) / std::max(cost, 1e-300);
+        const bool small_step =
+            delta.norm() <= options.parameter_tolerance * (q->norm() + options.parameter_tolerance);
+        *q = trial;
+        r = r_trial;
+        cost = cost_trial;
+        at_current = true;
+        accepted = true;
+        mu *= std::max(1.0 / 3.0, 1.0 - std::pow(2 * rho - 1, 3));
+        nu = 2;
+        if (decrease < options.function_tolerance) {
+          summary->message = "function tolerance";
+          done = true;
+        } else if (small_step) {
+          summary->message = "parameter tolerance";
+          done = true;
+        }
+      } else {
+        mu *= nu;
+        nu *= 2;
+      }
+    }
+    if (!accepted) {
+      summary->message = "no decrease found (converged to machine precision)";
+      break;
+    }
+  }
+  summary->iterations = it;
+  if (!at_current) HC_RETURN_IF_ERROR(problem.residual(*q, &r));
+  summary->final_cost = cost;
+  summary->usable = std::isfinite(cost);
+  return {};
+}
+
+void error_stats(const Eigen::VectorXd& r_m, double* rms, double* max) {
+  const Eigen::Index nodes = r_m.size() / 3;
+  double sum = 0, mx = 0;
+  for (Eigen::Index i = 0; i < nodes; ++i) {
+    const double d = r_m.segment<3>(3 * i).norm();
+    sum += d * d;
+    mx = std::max(mx, d);
+  }
+  *rms = nodes ? std::sqrt(sum / static_cast<double>(nodes)) : 0.0;
+  *max = mx;
+}
+
+// ---- Ceres backend ----
+
+class DataCost final : public ceres::CostFunction {
+ public:
+  DataCost(ExampleProblem* problem, const Reparam& rp) : problem_(problem), rp_(rp) {
+    for (Eigen::Index e = 0; e < problem->num_elements(); ++e)
+      mutable_parameter_block_sizes()->push_back(2);
+    set_num_residuals(static_cast<int>(problem->num_measurements()));
+  }
+  bool Evaluate(double const* const* parameters, double* residuals,
+                double** jacobians) const override {
+    const Eigen::Index t = problem_->num_elements();
+    std::vector<LambdaAlpha> p(static_cast<std::size_t>(t));
+    for (Eigen::Index e = 0; e < t; ++e)
+      p[static_cast<std::size_t>(e)] = rp_.to_params(parameters[e][0], parameters[e][1]);
+    Eigen::VectorXd r;
+    if (!problem_->simulate(p, &r).ok()) return false;
+    const double s = problem_->scale_m();
+    Eigen::Map<Eigen::VectorXd>(residuals, r.size()) = r / s;
+    if (jacobians == nullptr) return true;
+    Eigen::MatrixXd j;
+    if (!problem_->jacobian(&j).ok()) return false;
+    for (Eigen::Index e = 0; e < t; ++e) {
+      if (jacobians[e] == nullptr) continue;
+      Eigen::MatrixXd block = j.middleCols(2 * e, 2) / s;
+      rp_.chain(parameters[e][0], parameters[e][1], block);
+      Eigen::Map<Eigen::Matrix<double, Eigen::Dynamic, 2, Eigen::RowMajor>>(jacobians[e], j.rows(),
+                                                                            2) = block;
+    }
+    return true;
+  }
+
+ private:
+  ExampleProblem* problem_;
+  Reparam rp_;
+};
+
+// sqrt(γ) (deg_i q_i − Σ_j q_j), both channels; blocks: i then its neighbours.
+class LaplacianCost final : public ceres::CostFunction {
+ public:
+  LaplacianCost(double degree, int neighbours, double sqrt_gamma)
+      : degree_(degree), sqrt_gamma_(sqrt_gamma) {
+    for (int k = 0; k <= neighbours; ++k) mutable_parameter_block_sizes()->push_back(2);
+    set_num_residuals(2);
+  }
+  bool Evaluate(double const* const* parameters, double* residuals,
+                double** jacobians) const override {
+    const std::size_t blocks = parameter_block_sizes().size();
+    for (int c = 0; c < 2; ++c) {
+      double v = degree_ * parameters[0][c];
+      for (std::size_t k = 1; k < blocks; ++k) v -= parameters[k][c];
+      residuals[c] = sqrt_gamma_ * v;
+    }
+    if (jacobians)
+      for (std::size_t k = 0; k < blocks; ++k) {
+        if (!jacobians[k]) continue;
+        const double w = sqrt_gamma_ * (k == 0 ? degree_ : -1.0);
+        jacobians[k][0] = w;
+        jacobians[k][1] = 0;
+        jacobians[k][2] = 0;
+        jacobians[k][3] = w;
+      }
+    return true;
+  }
+
+ private:
+  double degree_;
+  double sqrt_gamma_;
+};
+
+Status fit_example_ceres(ExampleProblem* problem, const Eigen::SparseMatrix<double>& laplacian,
+                         const Reparam& rp, const ParameterFitOptions& options, Eigen::VectorXd* q,
+                         ParameterFitSummary* summary) {
+  const Eigen::Index t = problem->num_elements();
+  ceres::Problem::Options po;
+  po.cost_function_ownership = ceres::TAKE_OWNERSHIP;
+  ceres::Problem cp(po);
+  std::vector<double*> blocks(static_cast<std::size_t>(t));
+  for (Eigen::Index e = 0; e < t; ++e) blocks[static_cast<std::size_t>(e)] = q->data() + 2 * e;
+  cp.AddResidualBlock(new DataCost(problem, rp), nullptr, blocks);
+  const double sg = std::sqrt(options.regularization);
+  Eigen::SparseMatrix<double, Eigen::RowMajor> lr = laplacian;
+  for (Eigen::Index i = 0; i < t; ++i) {
+    std::vector<double*> b = {blocks[static_cast<std::size_t>(i)]};
+    double degree = 0;
+    for (Eigen::SparseMatrix<double, Eigen::RowMajor>::InnerIterator it(lr, i); it; ++it) {
+      if (it.col() == i) {
+        degree = it.value();
+      } else {
+        b.push_back(blocks[static_cast<std::size_t>(it.col())]);
+      }
+    }
+    if (b.size() > 1)
+      cp.AddResidualBlock(new LaplacianCost(degree, static_cast<int>(b.size() - 1), sg), nullptr,
+                          b);
+  }
+  ceres::Solver::Options so;
+  so.minimizer_type = ceres::TRUST_REGION;
+  so.trust_region_strategy_type = ceres::LEVENBERG_MARQUARDT;
+  so.linear_solver_type =
+      2 * t <= options.dense_parameter_limit ? ceres::DENSE_NORMAL_CHOLESKY : ceres::CGNR;
+  so.max_num_iterations = options.max_iterations;
+  so.function_tolerance = options.function_tolerance;
+  so.parameter_tolerance = options.parameter_tolerance;
+  so.num_threads = 1;
+  so.logging_type = ceres::SILENT;
+  ceres::Solver::Summary cs;
+  ceres::Solve(so, &cp, &cs);
+  summary->iterations = static_cast<int>(cs.iterations.size());
+  summary->initial_cost = 2 * cs.initial_cost;  // Ceres reports ½‖r‖²
+  summary->final_cost = 2 * cs.final_cost;
+  summary->message = cs.message;
+  summary->usable = cs.IsSolutionUsable();
+  return {};
+}
+
+}  // namespace
+
+Status ParameterFitOptions::validate() const {
+  if (!(regularization >= 0) || !std::isfinite(regularization))
+    return invalid_argument("regularization: must be >= 0");
+  if (max_iterations < 1) return invalid_argument("max_iterations: must be >= 1");
+  if (!(max_poisson > 0 && max_poisson < 0.5))
+    return invalid_argument("max_poisson: must be in (0, 0.5)");
+  if (!(initial_poisson > 0 && initial_poisson < max_poisson))
+    return invalid_argument("initial_poisson: must be in (0, max_poisson)");
+  if (!(function_tolerance >= 0) || !(parameter_tolerance >= 0))
+    return invalid_argument("tolerances must be >= 0");
+  return {};
+}
+
+Result<LambdaAlpha> fit_homogeneous(std::vector<ExampleProblem*> problems,
+                                    const ParameterFitOptions& options,
+                                    ParameterFitSummary* summary) {
+  HC_RETURN_IF_ERROR(options.validate());
+  if (problems.empty()) return invalid_argument("fit_homogeneous: no examples");
+  const auto t0 = Clock::now();
+  const Reparam rp{options.max_poisson};
+  const Eigen::Index t = problems[0]->num_elements();
+  for (ExampleProblem* p : problems)
+    if (p->num_elements() != t) return invalid_argument("fit_homogeneous: examples differ in mesh");
+  LambdaAlpha guess = problems[0]->stiffness_guess();
+  guess.alpha = guess.lambda * options.initial_poisson;
+  Eigen::VectorXd q = rp.to_q(guess);
+  const std::vector<int> groups(static_cast<std::size_t>(t), 0);
+  Eigen::Index rows = 0;
+  for (ExampleProblem* p : problems) rows += p->num_measurements();
+
+  LmProblem lm;
+  lm.residual = [&](const Eigen::VectorXd& qq, Eigen::VectorXd* r) -> Status {
+    const std::vector<LambdaAlpha> p(static_cast<std::size_t>(t), rp.to_params(qq(0), qq(1)));
+    r->resize(rows);
+    Eigen::Index at = 0;
+    for (ExampleProblem* ex : problems) {
+      Eigen::VectorXd ri;
+      HC_RETURN_IF_ERROR(ex->simulate(p, &ri));
+      r->segment(at, ri.size()) = ri / ex->scale_m();
+      at += ri.size();
+    }
+    return {};
+  };
+  lm.jacobian = [&](const Eigen::VectorXd& qq, Eigen::MatrixXd* j) -> Status {
+    j->resize(rows, 2);
+    Eigen::Index at = 0;
+    for (ExampleProblem* ex : problems) {
+      Eigen::MatrixXd ji;
+      HC_RETURN_IF_ERROR(ex->jacobian(&ji, &groups, 1));
+      j->middleRows(at, ji.rows()) = ji / ex->scale_m();
+      at += ji.rows();
+    }
+    rp.chain(qq(0), qq(1), *j);
+    return {};
+  };
+  ParameterFitSummary local;
+  ParameterFitSummary* s = summary ? summary : &local;
+  *s = ParameterFitSummary{};
+  HC_RETURN_IF_ERROR(run_lm(lm, options, &q, s));
+  const LambdaAlpha result = rp.to_params(q(0), q(1));
+  // Error statistics in metres over all examples at the result.
+  double sum = 0, mx = 0;
+  Eigen::Index nodes = 0;
+  for (ExampleProblem* ex : problems) {
+    Eigen::VectorXd ri;
+    HC_RETURN_IF_ERROR(
+        ex->simulate(std::vector<LambdaAlpha>(static_cast<std::size_t>(t), result), &ri));
+    double rms = 0, emax = 0;
+    error_stats(ri, &rms, &emax);
+    sum += rms * rms * static_cast<double>(ri.size() / 3);
+    nodes += ri.size() / 3;
+    mx = std::max(mx, emax);
+  }
+  s->rms_error_m = std::sqrt(sum / static_cast<double>(std::max<Eigen::Index>(nodes, 1)));
+  s->max_error_m = mx;
+  s->time_s = std::chrono::duration<double>(Clock::now() - t0).count();
+  return result;
+}
+
+Status fit_example(ExampleProblem* problem, const std::vector<LambdaAlpha>& initial,
+                   const ParameterFitOptions& options, std::vector<LambdaAlpha>* params,
+                   ParameterFitSummary* summary) {
+  HC_RETURN_IF_ERROR(options.validate());
+  const auto t0 = Clock::now();
+  const Eigen::Index t = problem->num_elements();
+  if (initial.size() != 1 && static_cast<Eigen::Index>(initial.size()) != t)
+    return invalid_argument(
+        fmt::format("fit_example: {} initial parameters for {} elements", initial.size(), t));
+  const Reparam rp{options.max_poisson};
+  Eigen::VectorXd q(2 * t);
+  for (Eigen::Index e = 0; e < t; ++e) {
+    const LambdaAlpha& p0 = initial.size() == 1 ? initial[0] : initial[static_cast<std::size_t>(e)];
+    if (!(p0.lambda > 0) || !std::isfinite(p0.lambda) || !std::isfinite(p0.alpha))
+      return invalid_argument(
+          fmt::format("fit_example: initial parameters of element {} invalid", e));
+    q.segment<2>(2 * e) = rp.to_q(p0);
+  }
+  const Eigen::SparseMatrix<double> laplacian = tet_umbrella_laplacian(problem->mesh());
+  ParameterFitSummary local;
+  ParameterFitSummary* s = summary ? summary : &local;
+  *s = ParameterFitSummary{};
+  if (options.backend == FitBackend::kCeres) {
+    HC_RETURN_IF_ERROR(fit_example_ceres(problem, laplacian, rp, options, &q, s));
+  } else {
+    LmProblem lm;
+    const double scale = problem->scale_m();
+    lm.residual = [&](const Eigen::VectorXd& qq, Eigen::VectorXd* r) -> Status {
+      HC_RETURN_IF_ERROR(problem->simulate(params_of(rp, qq), r));
+      *r /= scale;
+      return {};
+    };
+    lm.jacobian = [&](const Eigen::VectorXd& qq, Eigen::MatrixXd* j) -> Status {
+      HC_RETURN_IF_ERROR(problem->jacobian(j));
+      *j /= scale;
+      for (Eigen::Index e = 0; e < t; ++e)
+        rp.chain(qq(2 * e), qq(2 * e + 1), j->middleCols(2 * e, 2));
+      return {};
+    };
+    // sqrt(γ) (L ⊗ I₂): the Laplacian acts on each channel of q separately.
+    std::vector<Eigen::Triplet<double>> trip;
+    const double sg = std::sqrt(options.regularization);
+    for (Eigen::Index k = 0; k < laplacian.outerSize(); ++k)
+      for (Eigen::SparseMatrix<double>::InnerIterator it(laplacian, k); it; ++it)
+        for (int c = 0; c < 2; ++c)
+          trip.emplace_back(static_cast<int>(2 * it.row() + c), static_cast<int>(2 * it.col() + c),
+                            sg * it.value());
+    lm.reg.resize(2 * t, 2 * t);
+    lm.reg.setFromTriplets(trip.begin(), trip.end());
+    if (options.regularization == 0) lm.reg.resize(0, 0);
+    HC_RETURN_IF_ERROR(run_lm(lm, options, &q, s));
+  }
+  *params = params_of(rp, q);
+  Eigen::VectorXd r;
+  HC_RETURN_IF_ERROR(problem->simulate(*params, &r));
+  error_stats(r, &s->rms_error_m, &s->max_error_m);
+  s->time_s = std::chrono::duration<double>(Clock::now() - t0).count();
+  return {};
+}
+
+}  // namespace hc::material

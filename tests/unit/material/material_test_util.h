@@ -1,0 +1,86 @@
+// Test fixtures for the material fitter: structured tet boxes and synthetic examples simulated with
+// processing/fem's linear co-rotational model (per-element parameters known).
+#pragma once
+
+#include <Eigen/Core>
+#include <array>
+#include <vector>
+
+#include "common/tet_mesh.h"
+#include "processing/fem/corotational.h"
+#include "processing/material/samples.h"
+
+namespace hc::material::testing {
+
+// nx × ny × nz cubes over [0,sx]×[0,sy]×[0,sz], 6 tets per cube (Freudenthal/Kuhn split along the
+// main diagonal, conforming), positively oriented.
+inline TetMesh box_mesh(int nx, int ny, int nz, double sx, double sy, double sz) {
+  TetMesh m;
+  const auto id = [&](int i, int j, int k) { return (k * (ny + 1) + j) * (nx + 1) + i; };
+  m.nodes.resize((nx + 1) * (ny + 1) * (nz + 1), 3);
+  for (int k = 0; k <= nz; ++k)
+    for (int j = 0; j <= ny; ++j)
+      for (int i = 0; i <= nx; ++i)
+        m.nodes.row(id(i, j, k)) << sx * i / nx, sy * j / ny, sz * k / nz;
+  std::vector<std::array<int, 4>> tets;
+  const int perms[6][3] = {{0, 1, 2}, {0, 2, 1}, {1, 0, 2}, {1, 2, 0}, {2, 0, 1}, {2, 1, 0}};
+  for (int k = 0; k < nz; ++k)
+    for (int j = 0; j < ny; ++j)
+      for (int i = 0; i < nx; ++i)
+        for (const auto& p : perms) {
+          std::array<int, 3> c = {i, j, k};
+          std::array<int, 4> t;
+          t[0] = id(c[0], c[1], c[2]);
+          for (int s = 0; s < 3; ++s) {
+            ++c[static_cast<std::size_t>(p[s])];
+            t[static_cast<std::size_t>(s) + 1] = id(c[0], c[1], c[2]);
+          }
+          const Eigen::Vector3d a = m.nodes.row(t[0]), b = m.nodes.row(t[1]), d = m.nodes.row(t[2]),
+                                e = m.nodes.row(t[3]);
+          if ((b - a).dot((d - a).cross(e - a)) < 0) std::swap(t[2], t[3]);
+          tets.push_back(t);
+        }
+  m.tets.resize(static_cast<Eigen::Index>(tets.size()), 4);
+  for (std::size_t t = 0; t < tets.size(); ++t)
+    for (int c = 0; c < 4; ++c)
+      m.tets(static_cast<Eigen::Index>(t), c) = tets[t][static_cast<std::size_t>(c)];
+  return m;
+}
+
+inline std::vector<int> bottom_nodes(const TetMesh& m) {
+  std::vector<int> out;
+  for (Eigen::Index n = 0; n < m.num_nodes(); ++n)
+    if (m.nodes(n, 2) < 1e-12) out.push_back(static_cast<int>(n));
+  return out;
+}
+
+// Nodes on the top face within `radius` of (x, y) (horizontal distance).
+inline std::vector<int> top_nodes_near(const TetMesh& m, double x, double y, double radius) {
+  const double top = m.nodes.col(2).maxCoeff();
+  std::vector<int> out;
+  for (Eigen::Index n = 0; n < m.num_nodes(); ++n)
+    if (m.nodes(n, 2) > top - 1e-12 && std::hypot(m.nodes(n, 0) - x, m.nodes(n, 1) - y) <= radius)
+      out.push_back(static_cast<int>(n));
+  return out;
+}
+
+// An example: `force` (N, total) spread equally over `loaded` nodes, bottom fixed, positions from
+// processing/fem's co-rotational static solve with per-element `params`. All nodes visible.
+inline Example simulate_example(const TetMesh& mesh, const std::vector<fem::LambdaAlpha>& params,
+                                const std::vector<int>& loaded, const Eigen::Vector3d& force) {
+  Example ex;
+  ex.fixed_nodes = bottom_nodes(mesh);
+  for (int n : loaded) ex.forces.push_back({n, force / static_cast<double>(loaded.size())});
+  auto fem = fem::CorotationalFem::create(mesh, ex.fixed_nodes);
+  EXPECT_TRUE(fem.ok());
+  EXPECT_TRUE(fem->set_params(params).ok());
+  MatrixX3d f = MatrixX3d::Zero(mesh.num_nodes(), 3);
+  for (const NodalForce& nf : ex.forces) f.row(nf.node) = nf.force_n.transpose();
+  EXPECT_TRUE(fem->solve_static(f, 200, 1e-14).ok());
+  ex.positions_m = fem->positions();
+  ex.visible.assign(static_cast<std::size_t>(mesh.num_nodes()), 1);
+  ex.probe.shape = "none";
+  return ex;
+}
+
+}  // namespace hc::material::testing
