@@ -79,6 +79,19 @@ DeviceInfo Device::info() const {
 }
 
 namespace {
+// Failures of the device or its link (as opposed to a refused request): these enter kError.
+bool is_device_failure(const Status& s) {
+  switch (s.code()) {
+    case StatusCode::kIoError:
+    case StatusCode::kUnavailable:
+    case StatusCode::kDeadlineExceeded:
+    case StatusCode::kInternal:
+      return true;
+    default:
+      return false;
+  }
+}
+
 Status wrong_state(const Device& d, std::string_view operation) {
   return failed_precondition(std::string(to_string(d.kind())) + " '" + d.name() + "': cannot " +
                              std::string(operation) + " in state " +
@@ -221,7 +234,8 @@ Result<std::size_t> Camera::read(std::vector<Frame>& out, Duration timeout) {
 
 Status Camera::software_trigger() {
   HC_RETURN_IF_ERROR(check_active("software_trigger"));
-  return on_software_trigger();
+  Status s = on_software_trigger();
+  return is_device_failure(s) ? fail(s) : s;
 }
 
 Status Camera::on_software_trigger() {
@@ -262,21 +276,20 @@ Status Trigger::start(const PulseTrain& train) {
   HC_RETURN_IF_ERROR(validate(train));
   if (running()) return failed_precondition("trigger '" + name() + "': a pulse train is running");
   Status s = on_start(train);
-  if (!s.ok() && s.code() != StatusCode::kInvalidArgument) return fail(s);
-  return s;
+  return is_device_failure(s) ? fail(s) : s;
 }
 
 Status Trigger::stop() {
   HC_RETURN_IF_ERROR(check_active("stop"));
   Status s = on_stop();
-  return s.ok() ? s : fail(s);
+  return is_device_failure(s) ? fail(s) : s;
 }
 
 Status Trigger::fire() {
   HC_RETURN_IF_ERROR(check_active("fire"));
   if (running()) return failed_precondition("trigger '" + name() + "': a pulse train is running");
   Status s = on_fire();
-  return s.ok() ? s : fail(s);
+  return is_device_failure(s) ? fail(s) : s;
 }
 
 Result<std::size_t> Trigger::read(std::vector<TriggerEdge>& out, Duration timeout) {
@@ -306,7 +319,7 @@ Result<std::size_t> ForceTorque::read(std::vector<WrenchSample>& out, Duration t
 Status ForceTorque::bias() {
   HC_RETURN_IF_ERROR(check_active("bias"));
   Status s = on_bias();
-  return s.ok() ? s : fail(s);
+  return is_device_failure(s) ? fail(s) : s;
 }
 
 Status ForceTorque::clear_bias() {
@@ -320,8 +333,7 @@ Status Arm::write(const ArmCommand& command) {
   if (command.type == ArmCommand::Type::kMoveTo && !limits().contains(command.target))
     return invalid_argument("arm '" + name() + "': target outside the workspace");
   Status s = on_write(command);
-  if (!s.ok() && s.code() != StatusCode::kInvalidArgument) return fail(s);
-  return s;
+  return is_device_failure(s) ? fail(s) : s;
 }
 
 Result<ArmState> Arm::read() {

@@ -13,6 +13,9 @@
 // * Calling an operation in the wrong state returns kFailedPrecondition and changes nothing;
 //   in kError every operation except reset()/deactivate() returns the error that caused it.
 // * deactivate() stops streaming; in kError it releases what it can and the device stays kError.
+// * A failure of the device or its link (kIoError, kUnavailable, kDeadlineExceeded, kInternal) in
+//   activate/read/write enters kError; a refused request (kInvalidArgument, kFailedPrecondition,
+//   kUnsupported: a target outside the workspace, a move before homing) does not.
 //
 // Streaming reads append to a vector: `read(out, timeout)` blocks until at least one item is
 // available or `timeout` passed (on the device's Clock; with a SimulatedClock in auto-advance
