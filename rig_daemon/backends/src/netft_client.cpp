@@ -196,6 +196,7 @@ Result<std::size_t> NetFtClient::receive(std::vector<FtSample>& out,
 NetFtStats NetFtClient::stats() const {
   NetFtStats s = stats_;
   s.lost = tracker_.lost();
+  s.settled_lost = tracker_.settled_lost();
   s.late = tracker_.late();
   s.duplicates = tracker_.duplicates();
   s.stale = tracker_.stale();

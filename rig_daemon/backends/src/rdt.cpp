@@ -1,5 +1,7 @@
 #include "rig_daemon/backends/rdt.h"
 
+#include <algorithm>
+#include <bit>
 #include <cctype>
 #include <cmath>
 #include <cstdlib>
@@ -255,11 +257,24 @@ SequenceTracker::Verdict SequenceTracker::update(std::uint32_t sequence) {
     have_last_ = true;
     last_ = sequence;
     seen_ = 1;
+    fill_ = 1;
     return Verdict::kFirst;
   }
   const auto diff = static_cast<std::int32_t>(sequence - last_);
   if (diff >= 1) {
     lost_ += static_cast<std::uint64_t>(diff - 1);
+    // Old bits k >= 64 - diff fall out of the window: their zeros are settled losses; so are the
+    // new gap slots that would land beyond the window at once.
+    const auto d = static_cast<std::uint32_t>(diff);
+    const std::uint32_t first_out = d >= kWindow ? 0 : kWindow - d;
+    if (fill_ > first_out) {
+      const std::uint32_t n = fill_ - first_out;
+      const std::uint64_t mask = (n >= 64 ? ~std::uint64_t{0} : ((std::uint64_t{1} << n) - 1))
+                                 << first_out;
+      settled_lost_ += n - static_cast<std::uint32_t>(std::popcount(seen_ & mask));
+    }
+    if (d > kWindow) settled_lost_ += d - kWindow;
+    fill_ = std::min(kWindow, fill_ + d);
     seen_ = diff >= 64 ? 1 : (seen_ << diff) | 1;
     last_ = sequence;
     return Verdict::kInOrder;

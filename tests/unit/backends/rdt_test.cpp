@@ -144,6 +144,23 @@ TEST(RdtSequence, CountsGapsAsLostAndRecoversReorderedPackets) {
   EXPECT_EQ(t.update(200), V::kInOrder);
   EXPECT_EQ(t.lost(), 1u + 194u);
   EXPECT_EQ(t.update(3), V::kStale);  // older than the 64-packet window
+  // Settled losses: gaps that left the 64-packet window and can no longer be filled.
+  SequenceTracker g;
+  g.update(1);
+  g.update(4);  // 2, 3 missing
+  EXPECT_EQ(g.lost(), 2u);
+  EXPECT_EQ(g.settled_lost(), 0u);
+  g.update(3);                                          // 3 late
+  for (std::uint32_t s = 5; s <= 65; ++s) g.update(s);  // 2 is 63 behind 65: still fillable
+  EXPECT_EQ(g.settled_lost(), 0u);
+  g.update(66);  // 2 is now 64 behind: out of the window
+  EXPECT_EQ(g.settled_lost(), 1u);
+  EXPECT_EQ(g.lost(), 1u);
+  g.update(1000);  // 933 missing, 933 - 63 = 870 of them beyond the window at once
+  EXPECT_EQ(g.lost(), 1u + 933u);
+  EXPECT_EQ(g.settled_lost(), 1u + 870u);
+  for (std::uint32_t s = 1001; s <= 1064; ++s) g.update(s);
+  EXPECT_EQ(g.settled_lost(), g.lost());
   // Wrap-around at 2^32 is not a gap (int32 difference, as in the ROS driver).
   SequenceTracker w;
   w.update(0xFFFFFFFEu);

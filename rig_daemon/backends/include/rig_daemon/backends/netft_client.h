@@ -45,7 +45,8 @@ struct FtSample {
 struct NetFtStats {
   std::uint64_t datagrams = 0;
   std::uint64_t records = 0;        // delivered to the caller
-  std::uint64_t lost = 0;           // rdt_sequence gaps not filled later
+  std::uint64_t lost = 0;           // rdt_sequence gaps not filled (so far)
+  std::uint64_t settled_lost = 0;   // gaps too old to be filled by a late packet (only grows)
   std::uint64_t late = 0;           // reordered records that filled a gap (delivered)
   std::uint64_t duplicates = 0;     // dropped
   std::uint64_t stale = 0;          // older than the reorder window (dropped)

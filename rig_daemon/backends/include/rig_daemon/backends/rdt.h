@@ -116,7 +116,11 @@ class SequenceTracker {
   Verdict update(std::uint32_t sequence);
   // Forgets the last sequence (a new request restarts rdt_sequence at 1); counters are kept.
   void reset() { have_last_ = false; }
+  // Gaps not filled so far (may still shrink when late packets arrive).
   std::uint64_t lost() const { return lost_; }
+  // Gaps older than the window: they can no longer be filled, so this only grows (what a device
+  // reports as lost while streaming; lost() - settled_lost() is settled when the stream ends).
+  std::uint64_t settled_lost() const { return settled_lost_; }
   std::uint64_t late() const { return late_; }
   std::uint64_t duplicates() const { return duplicates_; }
   std::uint64_t stale() const { return stale_; }
@@ -125,6 +129,8 @@ class SequenceTracker {
   bool have_last_ = false;
   std::uint32_t last_ = 0;
   std::uint64_t seen_ = 0;  // bit k: last_ - k was received
+  std::uint32_t fill_ = 0;  // bits of seen_ that stand for sequences since the first one
+  std::uint64_t settled_lost_ = 0;
   std::uint64_t lost_ = 0;
   std::uint64_t late_ = 0;
   std::uint64_t duplicates_ = 0;
