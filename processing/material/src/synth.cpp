@@ -1,0 +1,134 @@
+#include "processing/material/synth.h"
+
+#include <fmt/format.h>
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <map>
+#include <random>
+
+namespace hc::material {
+namespace {
+// Distinct stream for the noise so that the example layout does not depend on the noise level.
+constexpr std::uint64_t kNoiseStream = 0x9e3779b97f4a7c15ULL;
+// Gap between the probe surface and the specimen at the start pose (fraction of the probe radius).
+constexpr double kStartClearance = 0.05;
+}  // namespace
+
+Status SynthOptions::validate() const {
+  if (examples < 1) return invalid_argument("--examples: must be >= 1");
+  if (!(noise >= 0) || !std::isfinite(noise)) return invalid_argument("--noise: must be >= 0");
+  if (!(max_force_n > 0) || !std::isfinite(max_force_n))
+    return invalid_argument("force: must be a finite number > 0");
+  if (!(min_force_fraction > 0 && min_force_fraction <= 1))
+    return invalid_argument("min_force_fraction: must be in (0, 1]");
+  if (!(margin_fraction >= 0 && margin_fraction < 0.5))
+    return invalid_argument("margin_fraction: must be in [0, 0.5)");
+  if (probe.shape != "sphere" && probe.shape != "flat" && probe.shape != "mesh")
+    return invalid_argument(fmt::format("probe shape '{}' cannot indent", probe.shape));
+  if (fixed_nodes.empty()) return invalid_argument("no fixed nodes");
+  if (!probe.direction.allFinite() || probe.direction.norm() < 1e-12)
+    return invalid_argument("probe direction must be a non-zero vector");
+  return {};
+}
+
+std::vector<int> boundary_nodes(const TetMesh& mesh) {
+  std::map<std::array<int, 3>, int> faces;
+  static constexpr int kFaces[4][3] = {{1, 2, 3}, {0, 2, 3}, {0, 1, 3}, {0, 1, 2}};
+  for (Eigen::Index t = 0; t < mesh.num_tets(); ++t)
+    for (const auto& f : kFaces) {
+      std::array<int, 3> key = {mesh.tets(t, f[0]), mesh.tets(t, f[1]), mesh.tets(t, f[2])};
+      std::sort(key.begin(), key.end());
+      ++faces[key];
+    }
+  std::vector<char> on(static_cast<std::size_t>(mesh.num_nodes()), 0);
+  for (const auto& [key, count] : faces)
+    if (count == 1)
+      for (int n : key) on[static_cast<std::size_t>(n)] = 1;
+  std::vector<int> out;
+  for (std::size_t n = 0; n < on.size(); ++n)
+    if (on[n]) out.push_back(static_cast<int>(n));
+  return out;
+}
+
+Samples add_displacement_noise(const Samples& clean, double noise, std::uint64_t seed) {
+  Samples out = clean;
+  if (noise <= 0) return out;
+  std::mt19937_64 rng(seed ^ kNoiseStream);
+  std::normal_distribution<double> normal(0.0, 1.0);
+  for (std::size_t i = 0; i < out.examples.size(); ++i) {
+    Example& ex = out.examples[i];
+    const double sigma = noise * clean.max_displacement_m(i);
+    std::vector<char> fixed(static_cast<std::size_t>(clean.mesh.num_nodes()), 0);
+    for (int n : ex.fixed_nodes) fixed[static_cast<std::size_t>(n)] = 1;
+    for (Eigen::Index n = 0; n < clean.mesh.num_nodes(); ++n) {
+      if (!ex.visible[static_cast<std::size_t>(n)] || fixed[static_cast<std::size_t>(n)]) continue;
+      for (int a = 0; a < 3; ++a) ex.positions_m(n, a) += sigma * normal(rng);
+    }
+  }
+  return out;
+}
+
+Result<Samples> synthesize_samples(const TetMesh& mesh, const ReferenceSimulator& simulate,
+                                   const SynthOptions& options) {
+  HC_RETURN_IF_ERROR(options.validate());
+  Samples samples;
+  samples.mesh = mesh;
+  const Eigen::Vector3d lo = mesh.nodes.colwise().minCoeff();
+  const Eigen::Vector3d hi = mesh.nodes.colwise().maxCoeff();
+  const Eigen::Vector3d size = hi - lo;
+  const Eigen::Vector3d dir = options.probe.direction.normalized();
+  const std::vector<int> surface = boundary_nodes(mesh);
+  std::mt19937_64 rng(options.seed);
+  std::uniform_real_distribution<double> unit(0.0, 1.0);
+  if (options.progress)
+    options.progress->begin("synthesize examples", static_cast<std::uint64_t>(options.examples));
+  // Stratified placement: a near-square grid of cells over the top face, one jittered probe per
+  // cell (cells reused round-robin when there are more examples than cells).
+  const int cols = static_cast<int>(std::ceil(std::sqrt(static_cast<double>(options.examples))));
+  const int rows = (options.examples + cols - 1) / cols;
+  for (int k = 0; k < options.examples; ++k) {
+    const int cx = k % cols, cy = (k / cols) % rows;
+    const double fx = (cx + unit(rng)) / cols, fy = (cy + unit(rng)) / rows;
+    const double m = options.margin_fraction;
+    ProbePose probe = options.probe;
+    probe.direction = dir;
+    const double x = lo.x() + size.x() * (m + (1 - 2 * m) * fx);
+    const double y = lo.y() + size.y() * (m + (1 - 2 * m) * fy);
+    // Start above the top face (for a downward probe) by the radius plus a small clearance.
+    const double lift = probe.radius_m * (1 + kStartClearance) + 1e-6 * size.norm();
+    probe.position_m = Eigen::Vector3d(x, y, hi.z()) - lift * dir;
+    const double force = options.max_force_n * (options.min_force_fraction +
+                                                (1 - options.min_force_fraction) * unit(rng));
+    Result<ReferenceIndentation> sim = simulate(probe, force);
+    if (!sim.ok()) return sim.status().with_context(fmt::format("synth example {}", k));
+    if (sim->positions_m.rows() != mesh.num_nodes() ||
+        sim->contact_forces_n.rows() != mesh.num_nodes())
+      return internal_error(fmt::format("synth example {}: simulator returned wrong sizes", k));
+    Example ex;
+    ex.name = fmt::format("synth{:03d}", k);
+    ex.probe = probe;
+    ex.fixed_nodes = options.fixed_nodes;
+    ex.positions_m = sim->positions_m;
+    for (int n : ex.fixed_nodes) ex.positions_m.row(n) = mesh.nodes.row(n);
+    const double fmax = sim->contact_forces_n.rowwise().norm().maxCoeff();
+    for (Eigen::Index n = 0; n < mesh.num_nodes(); ++n) {
+      const Eigen::Vector3d f = sim->contact_forces_n.row(n).transpose();
+      if (f.norm() > 1e-12 * fmax && fmax > 0) ex.forces.push_back({static_cast<int>(n), f});
+    }
+    if (ex.forces.empty())
+      return failed_precondition(fmt::format("synth example {}: the probe exerts no force", k));
+    ex.visible.assign(static_cast<std::size_t>(mesh.num_nodes()), options.surface_only ? 0 : 1);
+    if (options.surface_only)
+      for (int n : surface) ex.visible[static_cast<std::size_t>(n)] = 1;
+    samples.examples.push_back(std::move(ex));
+    if (options.progress) options.progress->update(static_cast<std::uint64_t>(k + 1));
+  }
+  if (options.progress) options.progress->end("");
+  Samples noisy = add_displacement_noise(samples, options.noise, options.seed);
+  HC_RETURN_IF_ERROR(validate_samples(noisy));
+  return noisy;
+}
+
+}  // namespace hc::material
