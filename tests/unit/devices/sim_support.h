@@ -18,6 +18,7 @@ struct SimRig {
     clock = std::make_shared<SimulatedClock>(1'000'000'000);
     world = std::make_shared<sim::World>(options, clock);
     EXPECT_TRUE(register_sim_backends(registry).ok());
+    EXPECT_TRUE(register_firmware_backends(registry).ok());
   }
   DeviceContext context(const std::string& name, const std::string& backend = "sim") const {
     DeviceContext ctx;
@@ -27,9 +28,13 @@ struct SimRig {
     ctx.world = world;
     return ctx;
   }
+  // Backend "sim" unless the YAML names another with `backend: NAME` (read from the text).
   template <typename D>
   std::unique_ptr<D> make(const std::string& name, const std::string& yaml = "{}") {
-    Result<std::unique_ptr<D>> made = registry.create<D>(context(name));
+    std::string backend = "sim";
+    if (const std::size_t at = yaml.find("backend: "); at != std::string::npos)
+      backend = yaml.substr(at + 9, yaml.find_first_of(",}", at) - at - 9);
+    Result<std::unique_ptr<D>> made = registry.create<D>(context(name, backend));
     EXPECT_TRUE(made.ok()) << made.status().to_string();
     if (!made.ok()) return nullptr;
     Status s = configure_from_yaml(**made, yaml, name);
