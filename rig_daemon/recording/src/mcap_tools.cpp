@@ -2,6 +2,7 @@
 #include "rig_daemon/recording/mcap_tools.h"
 
 #include <algorithm>
+#include <array>
 #include <cstdio>
 #include <optional>
 #include <set>
@@ -605,10 +606,14 @@ Result<RecoverReport> recover(const std::filesystem::path& input,
   HC_RETURN_IF_ERROR(options.validate());
   // Check the input is MCAP before creating anything.
   {
-    HC_ASSIGN_OR_RETURN(auto probe, scan_records(input, [](const LinearRecord&) {
-                          return Status(StatusCode::kCancelled, "probe");
-                        }));
-    (void)probe;
+    std::FILE* f = std::fopen(input.c_str(), "rb");
+    if (f == nullptr) return not_found(fmt::format("recover: cannot open {}", input.string()));
+    std::array<std::uint8_t, 8> magic{};
+    const std::size_t n = std::fread(magic.data(), 1, magic.size(), f);
+    std::fclose(f);
+    if (n != magic.size() || magic != kMagic)
+      return invalid_argument(
+          fmt::format("recover: {}: offset 0: not an MCAP file (bad magic)", input.string()));
   }
   const std::filesystem::path tmp = output.string() + ".recover-tmp";
   McapWriter::Options opt = options;
