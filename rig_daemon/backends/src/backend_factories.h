@@ -15,5 +15,6 @@ namespace hc::rig {
 Result<std::unique_ptr<devices::ForceTorque>> make_netft_force_torque(
     const devices::DeviceContext& ctx);
 Result<std::unique_ptr<devices::Arm>> make_modbus_arm(const devices::DeviceContext& ctx);
+Result<std::unique_ptr<devices::Camera>> make_aravis_camera(const devices::DeviceContext& ctx);
 
 }  // namespace hc::rig

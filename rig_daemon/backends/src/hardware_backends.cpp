@@ -10,6 +10,8 @@ Status register_hardware_backends(devices::BackendRegistry& registry) {
                                                "ATI Net F/T over RDT/UDP (netft_client.h)"));
   HC_RETURN_IF_ERROR(registry.add<Arm>("modbus", make_modbus_arm,
                                        "4-DOF arm over Modbus TCP/RTU (arm_register_map.h)"));
+  HC_RETURN_IF_ERROR(
+      registry.add<Camera>("aravis", make_aravis_camera, "GigE Vision camera through Aravis 0.8"));
   return {};
 }
 
