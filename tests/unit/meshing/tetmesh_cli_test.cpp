@@ -1,0 +1,98 @@
+// `hardcopy tetmesh`: runs the built binary as a user would (exit codes, --json keys, the three
+// output files, nothing written on failure).
+#include <gtest/gtest.h>
+#include <sys/wait.h>
+
+#include <array>
+#include <cstdio>
+#include <nlohmann/json.hpp>
+#include <string>
+
+#include "common/file_io.h"
+#include "common/tet_mesh_io.h"
+#include "processing/meshing/tetrahedralize.h"
+#include "test_data.h"
+
+namespace hc::testing {
+namespace {
+
+struct CliRun {
+  int exit_code = -1;
+  std::string out;
+};
+
+CliRun hardcopy(const std::string& args) {
+  const std::string cmd = (bin_dir() / "hardcopy").string() + " --quiet " + args + " 2>/dev/null";
+  CliRun r;
+  FILE* p = ::popen(cmd.c_str(), "r");
+  if (p == nullptr) return r;
+  std::array<char, 4096> buf{};
+  size_t n;
+  while ((n = std::fread(buf.data(), 1, buf.size(), p)) > 0) r.out.append(buf.data(), n);
+  const int status = ::pclose(p);
+  r.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  return r;
+}
+
+TEST(TetmeshCli, PolyMatchesTetgenReferenceAndWritesThreeFiles) {
+  ScratchDir dir;
+  const CliRun r = hardcopy("tetmesh " + shared_data("fem/tetgen/example.poly").string() + " -o " +
+                            (dir / "ex").string() + " --quality 1.414 --max-volume 0.1 --json");
+  ASSERT_EQ(r.exit_code, 0) << r.out;
+  const auto j = nlohmann::json::parse(r.out);
+  // ../shared/data/fem/tetgen/tetgen_1.5.0_reference_counts.txt, `tetgen -pq1.414a0.1`.
+  EXPECT_EQ(j["nodes"], 482);
+  EXPECT_EQ(j["tets"], 1533);
+  for (const char* key : {"volume_m3", "time_s", "node", "ele", "vtu", "tetgen_switches"})
+    EXPECT_TRUE(j.contains(key)) << key;
+  Result<TetMesh> back = read_tetgen(dir / "ex");
+  ASSERT_TRUE(back.ok()) << back.status().to_string();
+  EXPECT_EQ(back->num_tets(), 1533);
+  Result<std::string> vtu = read_file(dir / "ex.vtu");
+  ASSERT_TRUE(vtu.ok());
+  EXPECT_NE(vtu->find("NumberOfPoints=\"482\" NumberOfCells=\"1533\""), std::string::npos);
+}
+
+TEST(TetmeshCli, SurfaceScaledToMetres) {
+  ScratchDir dir;
+  // pinion.off as if in millimetres: the volume scales by 1e-9.
+  const CliRun r = hardcopy("tetmesh " + shared_data("meshes/pinion.off").string() + " -o " +
+                            (dir / "p.vtu").string() + " --scale-to-m 0.001 --json");
+  ASSERT_EQ(r.exit_code, 0) << r.out;
+  const auto j = nlohmann::json::parse(r.out);
+  const CliRun r1 = hardcopy("tetmesh " + shared_data("meshes/pinion.off").string() + " -o " +
+                             (dir / "q").string() + " --json");
+  ASSERT_EQ(r1.exit_code, 0) << r1.out;
+  const auto j1 = nlohmann::json::parse(r1.out);
+  EXPECT_NEAR(j["volume_m3"].get<double>(), 1e-9 * j1["volume_m3"].get<double>(),
+              1e-6 * 1e-9 * j1["volume_m3"].get<double>());
+  EXPECT_TRUE(std::filesystem::exists(dir / "p.node"));
+  EXPECT_TRUE(std::filesystem::exists(dir / "p.ele"));
+  EXPECT_TRUE(std::filesystem::exists(dir / "p.vtu"));
+}
+
+TEST(TetmeshCli, BadInputExitsTwoAndWritesNothing) {
+  ScratchDir dir;
+  const std::string out = " -o " + (dir / "x").string();
+  EXPECT_EQ(hardcopy("tetmesh " + (dir / "missing.obj").string() + out).exit_code, 2);
+  ASSERT_TRUE(write_file_atomic(dir / "bad.poly", "4 3 0 0\n1 0 0 0\n").ok());
+  EXPECT_EQ(hardcopy("tetmesh " + (dir / "bad.poly").string() + out).exit_code, 2);
+  ASSERT_TRUE(
+      write_file_atomic(dir / "bad.off", "OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n").ok());
+  EXPECT_EQ(hardcopy("tetmesh " + (dir / "bad.off").string() + out).exit_code, 2);
+  EXPECT_EQ(
+      hardcopy("tetmesh " + shared_data("meshes/pinion.off").string() + out + " --quality 0.5")
+          .exit_code,
+      2);
+  EXPECT_EQ(
+      hardcopy("tetmesh " + shared_data("meshes/pinion.off").string() + out + " --scale-to-m -1")
+          .exit_code,
+      2);
+  EXPECT_EQ(hardcopy("tetmesh").exit_code, 2);
+  EXPECT_FALSE(std::filesystem::exists(dir / "x.node"));
+  EXPECT_FALSE(std::filesystem::exists(dir / "x.vtu"));
+  EXPECT_EQ(hardcopy("tetmesh --help").exit_code, 0);
+}
+
+}  // namespace
+}  // namespace hc::testing

@@ -1,0 +1,126 @@
+// hardcopy tetmesh: closed surface mesh or TetGen .poly → tetrahedra (.node/.ele/.vtu).
+#include <fmt/format.h>
+
+#include <chrono>
+#include <filesystem>
+#include <string>
+
+#include "command.h"
+#include "common/json.h"
+#include "common/mesh_io.h"
+#include "common/tet_mesh_io.h"
+#include "processing/meshing/tetrahedralize.h"
+
+namespace hc::cli {
+namespace {
+
+struct TetmeshArgs {
+  std::string input;
+  std::string output;
+  double quality = 2.0;
+  double max_volume_m3 = 0;
+  double scale_to_m = 1.0;
+  bool json = false;
+};
+
+// OUT may be given as BASE or BASE.node / .ele / .vtu: all three files share BASE.
+std::filesystem::path output_base(const std::string& out) {
+  std::filesystem::path p(out);
+  const std::string ext = p.extension().string();
+  if (ext == ".node" || ext == ".ele" || ext == ".vtu") p.replace_extension();
+  return p;
+}
+
+Result<TetMesh> mesh_input(const TetmeshArgs& args, meshing::TetrahedralizeSummary* summary) {
+  meshing::TetrahedralizeOptions options;
+  options.max_radius_edge_ratio = args.quality;
+  options.max_volume = args.max_volume_m3;
+  HC_RETURN_IF_ERROR(options.validate());
+  if (std::filesystem::path(args.input).extension() == ".poly") {
+    HC_ASSIGN_OR_RETURN(meshing::Plc plc, meshing::read_poly(args.input));
+    plc.points *= args.scale_to_m;
+    for (auto& f : plc.facets)
+      for (auto& h : f.holes) h *= args.scale_to_m;
+    for (auto& h : plc.holes) h *= args.scale_to_m;
+    for (auto& r : plc.regions) {
+      r.seed *= args.scale_to_m;
+      r.max_volume *= args.scale_to_m * args.scale_to_m * args.scale_to_m;
+    }
+    Result<TetMesh> m = meshing::tetrahedralize(plc, options, summary, !plc.regions.empty());
+    if (!m.ok()) return m.status().with_context(args.input);
+    return m;
+  }
+  HC_ASSIGN_OR_RETURN(TriangleMesh surface, read_mesh(args.input));
+  surface.vertices *= args.scale_to_m;
+  Result<TetMesh> m = meshing::tetrahedralize(surface, options, summary);
+  if (!m.ok()) return m.status().with_context(args.input);
+  return m;
+}
+
+int run_tetmesh(const GlobalOptions& global, const TetmeshArgs& args) {
+  Context ctx(global);
+  if (!(std::isfinite(args.scale_to_m) && args.scale_to_m > 0))
+    return ctx.fail("tetmesh",
+                    invalid_argument(fmt::format("--scale-to-m {} must be positive and finite",
+                                                 args.scale_to_m)));
+  const auto start = std::chrono::steady_clock::now();
+  meshing::TetrahedralizeSummary summary;
+  Result<TetMesh> mesh = mesh_input(args, &summary);
+  if (!mesh.ok()) return ctx.fail("tetmesh", mesh.status());
+  const std::filesystem::path base = output_base(args.output);
+  if (Status s = write_tetgen(base, *mesh); !s.ok()) return ctx.fail("tetmesh", s);
+  const std::filesystem::path vtu(base.string() + ".vtu");
+  if (Status s = write_vtu(vtu, *mesh); !s.ok()) return ctx.fail("tetmesh", s);
+  const double time_s =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  if (args.json) {
+    Json j{{"input", args.input},
+           {"node", base.string() + ".node"},
+           {"ele", base.string() + ".ele"},
+           {"vtu", vtu.string()},
+           {"nodes", mesh->num_nodes()},
+           {"tets", mesh->num_tets()},
+           {"boundary_faces", summary.boundary_faces},
+           {"volume_m3", summary.volume},
+           {"min_tet_volume_m3", summary.min_tet_volume},
+           {"max_tet_volume_m3", summary.max_tet_volume},
+           {"tetgen_switches", summary.switches},
+           {"time_s", time_s}};
+    if (Status s = print_json(j); !s.ok()) return ctx.fail("tetmesh", s);
+  } else {
+    fmt::print("{} -> {}.{{node,ele,vtu}}: {} nodes, {} tets, volume {:.6g} m^3 (TetGen -{})\n",
+               args.input, base.string(), mesh->num_nodes(), mesh->num_tets(), summary.volume,
+               summary.switches);
+  }
+  return kExitYes;
+}
+
+}  // namespace
+
+void add_tetmesh_commands(CLI::App& app, const GlobalOptions& global, int* exit_code) {
+  auto args = std::make_shared<TetmeshArgs>();
+  CLI::App* c = app.add_subcommand(
+      "tetmesh",
+      "Tetrahedralize a closed surface mesh (.obj .stl .ply .off) or a TetGen .poly with TetGen; "
+      "writes OUT.node, OUT.ele (TetGen) and OUT.vtu (ParaView).\nExit 0 on success, 2 on "
+      "unreadable input, a surface TetGen rejects or bad options.");
+  c->add_option("IN", args->input, "Closed surface mesh or .poly file")->required();
+  c->add_option("-o,--output", args->output, "Output base name (OUT.node, OUT.ele, OUT.vtu)")
+      ->required();
+  c->add_option("--quality", args->quality,
+                "Maximum radius-edge ratio of the tets (TetGen -q; >= 1.0, 0 = no refinement)")
+      ->capture_default_str();
+  c->add_option("--max-volume", args->max_volume_m3,
+                "Maximum tet volume in m^3, after scaling (TetGen -a; 0 = none)")
+      ->check(CLI::NonNegativeNumber)
+      ->capture_default_str();
+  c->add_option("--scale-to-m", args->scale_to_m,
+                "Multiply input coordinates by this to get metres (0.001 for a mesh in mm)")
+      ->capture_default_str();
+  c->add_flag("--json", args->json, "Print one JSON object");
+  c->callback([&global, args, exit_code] { *exit_code = run_tetmesh(global, *args); });
+}
+
+HC_REGISTER_COMMANDS_ORDERED(30, add_tetmesh_commands);
+
+}  // namespace hc::cli
