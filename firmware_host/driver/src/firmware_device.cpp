@@ -1,6 +1,7 @@
 #include "firmware_host/driver/firmware_device.h"
 
 #include <algorithm>
+#include <cmath>
 #include <thread>
 
 namespace hc::fw {
@@ -21,7 +22,10 @@ Status deadline_exceeded(std::string message) {
 class SimTransport final : public Transport {
  public:
   SimTransport(SimulatorOptions options, SimClock clock)
-      : sim_(std::move(options)), clock_(clock), epoch_ns_(host_monotonic_ns()) {}
+      : sim_(std::move(options)),
+        clock_(clock),
+        epoch_ns_(host_monotonic_ns()),
+        rate_(1.0 + sim_.options().clock_drift_ppm * 1e-6) {}
 
   Status write(const std::uint8_t* data, std::size_t size) override {
     sim_.host_write(data, size);
@@ -31,7 +35,11 @@ class SimTransport final : public Transport {
   Result<std::size_t> read(std::uint8_t* out, std::size_t cap, microseconds timeout) override {
     const auto timeout_us = static_cast<std::uint64_t>(std::max<std::int64_t>(0, timeout.count()));
     if (clock_ == SimClock::kVirtual) {
-      const std::uint64_t deadline = sim_.now_us() + timeout_us;
+      const std::int64_t deadline_ns = now_ns() + static_cast<std::int64_t>(timeout_us) * 1000;
+      // At least 1 µs of progress per non-zero timeout, whatever the rounding, so callers that loop
+      // until a host-time deadline always get there.
+      const std::uint64_t deadline =
+          timeout_us == 0 ? sim_.now_us() : std::max(device_us_at(deadline_ns), sim_.now_us() + 1);
       const std::uint64_t step = std::max<std::uint32_t>(1, sim_.options().main_loop_period_us);
       while (sim_.host_readable() == 0 && sim_.now_us() < deadline)
         sim_.advance_to(std::min(deadline, sim_.now_us() + step));
@@ -39,7 +47,7 @@ class SimTransport final : public Transport {
       const std::int64_t deadline_ns =
           host_monotonic_ns() + static_cast<std::int64_t>(timeout_us) * 1000;
       for (;;) {
-        sim_.advance_to(static_cast<std::uint64_t>((host_monotonic_ns() - epoch_ns_) / 1000));
+        sim_.advance_to(device_us_at(host_monotonic_ns()));
         if (sim_.host_readable() != 0 || host_monotonic_ns() >= deadline_ns) break;
         std::this_thread::sleep_for(microseconds(200));
       }
@@ -49,7 +57,7 @@ class SimTransport final : public Transport {
 
   std::int64_t now_ns() const override {
     if (clock_ == SimClock::kVirtual)
-      return epoch_ns_ + static_cast<std::int64_t>(sim_.now_us()) * 1000;
+      return epoch_ns_ + std::llround(static_cast<double>(sim_.now_us()) * 1000.0 / rate_);
     return host_monotonic_ns();
   }
   std::string describe() const override {
@@ -58,9 +66,16 @@ class SimTransport final : public Transport {
   Simulator& simulator() { return sim_; }
 
  private:
+  // Firmware time (µs) at host time `host_ns`: the device clock runs `rate_` times the host's.
+  std::uint64_t device_us_at(std::int64_t host_ns) const {
+    const double us = static_cast<double>(host_ns - epoch_ns_) * rate_ / 1000.0;
+    return us <= 0 ? 0 : static_cast<std::uint64_t>(us);
+  }
+
   Simulator sim_;
   SimClock clock_;
   std::int64_t epoch_ns_;
+  double rate_;
 };
 
 const char* field_name(std::uint8_t field) {
@@ -99,6 +114,8 @@ Status OpenOptions::validate() const {
       return invalid_argument("sim.adc_bits must be 1..16");
     if (!(sim.adc_reference_v > 0)) return invalid_argument("sim.adc_reference_v must be > 0");
     if (!(sim.adc_noise_v >= 0)) return invalid_argument("sim.adc_noise_v must be >= 0");
+    if (!(std::abs(sim.clock_drift_ppm) <= 10'000))
+      return invalid_argument("sim.clock_drift_ppm must be within +-10000");
     if (sim.main_loop_period_us == 0)
       return invalid_argument("sim.main_loop_period_us must be > 0");
     return {};

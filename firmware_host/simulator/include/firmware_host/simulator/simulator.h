@@ -33,6 +33,9 @@ struct SimulatorOptions {
   std::uint32_t main_loop_period_us = 100;  // how often the core's poll() runs
   std::uint32_t isr_latency_us = 0;         // added to every timer interrupt (late-edge testing)
   std::size_t usb_in_capacity = 1 << 20;    // bytes the device->host queue holds before stalling
+  // The device crystal's frequency error: the firmware clock advances (1 + ppm * 1e-6) µs per host
+  // µs. Applied by the driver's simulator transport when it maps virtual device time to host time.
+  double clock_drift_ppm = 0.0;
 };
 
 // One recorded GPIO transition.
