@@ -121,6 +121,10 @@ class NeoHookeanModel {
   // Per-tet deformation gradient F at x.
   Eigen::Matrix3d deformation_gradient(const Eigen::VectorXd& x, Eigen::Index tet) const;
 
+  // Internal (elastic) nodal forces ∂E/∂x (3N, N): at equilibrium, minus the applied loads; at
+  // fixed DOFs, minus the support reactions. +inf entries when a tet is inverted.
+  Eigen::VectorXd internal_forces(const Eigen::VectorXd& x) const;
+
   // Rest positions as a 3N vector.
   Eigen::VectorXd rest_positions() const;
 
@@ -135,8 +139,8 @@ class NeoHookeanModel {
 
 struct SolveOptions {
   int max_newton_iterations = 100;
-  // Converged when ‖free gradient‖∞ ≤ gradient_tolerance_n · max(1, ‖free external+contact
-  // force‖∞) ... in newtons: absolute + relative to the largest applied nodal force.
+  // Converged when ‖free gradient‖∞ ≤ gradient_tolerance_n + relative_gradient_tolerance · s,
+  // with s the load scale: the largest nodal internal force, reaction or applied force (N).
   double gradient_tolerance_n = 1e-9;
   double relative_gradient_tolerance = 1e-8;
   int max_line_search_steps = 40;  // halvings
@@ -165,10 +169,12 @@ struct SolveSummary {
   double time_s = 0;
 };
 
-// What is held: nodes fixed at given positions, nodal external forces and rigid obstacles.
+// What is held: nodes fixed at given positions, single fixed DOFs (rollers), nodal external forces
+// and rigid obstacles. Nodes that belong to no tet are held fixed too.
 struct Boundary {
-  std::vector<int> fixed_nodes;                   // held at their position in the initial x
-  Eigen::VectorXd external_forces_n;              // 3N or empty (none)
+  std::vector<int> fixed_nodes;       // all three DOFs held at their position in the initial x
+  std::vector<int> fixed_dofs;        // DOF 3·node + axis held at its initial value (e.g. rollers)
+  Eigen::VectorXd external_forces_n;  // 3N or empty (none); dead loads
   std::vector<const ContactPotential*> contacts;  // not owned; may be empty
 };
 
