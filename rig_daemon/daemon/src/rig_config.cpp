@@ -31,6 +31,8 @@ Status RigConfig::read(ConfigNode node) {
     node.error("devices", "expected a map of devices (name: {kind: ..., backend: ..., ...})");
   }
   node.required("workspace", workspace);
+  // The simulated world's options (sim::WorldOptions) are read when the rig is built.
+  if (std::optional<ConfigNode> w = node.find("world")) w->allow_unknown_keys();
   node.optional("max_force_n", max_force_n, Bounds{0.0, kMaxPlanForceN, true, false});
   std::string dir;
   if (node.optional("sessions_dir", dir)) {
@@ -88,17 +90,25 @@ Json RigConfig::to_json() const {
 }
 
 const std::string_view kEmbeddedDefaultRigConfig =
-    R"(# rigd's embedded default: every device simulated.
+    R"(# rigd's embedded default: every device simulated. Seven 320x240 cameras on a half circle
+# 0.3 m around the specimen (thesis 5.6); the first three serve the hand-held protocol (4.4).
 devices:
-  cam0: {kind: camera, backend: sim}
-  cam1: {kind: camera, backend: sim}
-  cam2: {kind: camera, backend: sim}
-  cam3: {kind: camera, backend: sim}
-  cam4: {kind: camera, backend: sim}
-  cam5: {kind: camera, backend: sim}
-  cam6: {kind: camera, backend: sim}
+  cam0: {kind: camera, backend: sim, width: 320, height: 240, fx: 400, fy: 400,
+         position_m: [0.3000, 0.0000, 0.3], look_at_m: [0, 0, 0.05]}
+  cam1: {kind: camera, backend: sim, width: 320, height: 240, fx: 400, fy: 400,
+         position_m: [0.2598, -0.1500, 0.3], look_at_m: [0, 0, 0.05]}
+  cam2: {kind: camera, backend: sim, width: 320, height: 240, fx: 400, fy: 400,
+         position_m: [0.1500, -0.2598, 0.3], look_at_m: [0, 0, 0.05]}
+  cam3: {kind: camera, backend: sim, width: 320, height: 240, fx: 400, fy: 400,
+         position_m: [0.0000, -0.3000, 0.3], look_at_m: [0, 0, 0.05]}
+  cam4: {kind: camera, backend: sim, width: 320, height: 240, fx: 400, fy: 400,
+         position_m: [-0.1500, -0.2598, 0.3], look_at_m: [0, 0, 0.05]}
+  cam5: {kind: camera, backend: sim, width: 320, height: 240, fx: 400, fy: 400,
+         position_m: [-0.2598, -0.1500, 0.3], look_at_m: [0, 0, 0.05]}
+  cam6: {kind: camera, backend: sim, width: 320, height: 240, fx: 400, fy: 400,
+         position_m: [-0.3000, 0.0000, 0.3], look_at_m: [0, 0, 0.05]}
   trigger: {kind: trigger, backend: sim}
-  fsr: {kind: fsr, backend: sim}
+  fsr: {kind: fsr, backend: sim, sampling: triggered}  # read on every trigger edge (thesis 4.4)
   ft: {kind: force_torque, backend: sim}
   arm: {kind: arm, backend: sim}
 workspace: {min_m: [-0.1, -0.1, 0.0], max_m: [0.1, 0.1, 0.2]}

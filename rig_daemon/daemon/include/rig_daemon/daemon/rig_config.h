@@ -15,6 +15,7 @@
 //   stall_timeout_s: 0.05          # no F/T sample for this long while the arm moves -> stop
 //   compression: zstd              # zstd | lz4 | none
 //   seed: 1                        # seed of the simulated world
+//   world: {...}                   # options of the simulated world (devices/sim_world.h)
 //
 // `rigd` with no arguments uses kEmbeddedDefaultRigConfig (everything "sim").
 #pragma once

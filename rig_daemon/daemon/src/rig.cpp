@@ -1,0 +1,100 @@
+#include "rig_daemon/daemon/rig.h"
+
+#include <optional>
+
+namespace hc::rig {
+
+Json stats_json(const devices::DeviceStats& s) {
+  return Json{{"received", s.received},     {"lost", s.lost},     {"late", s.late},
+              {"incomplete", s.incomplete}, {"errors", s.errors}, {"last_host_ns", s.last_host_ns}};
+}
+
+Result<std::unique_ptr<Rig>> Rig::create(Options options) {
+  std::unique_ptr<Rig> rig(new Rig());
+  rig->config_ = std::move(options.config);
+  rig->clock_ = options.clock ? options.clock : devices::monotonic_clock();
+  HC_RETURN_IF_ERROR(devices::register_sim_backends(rig->registry_));
+  if (!rig->config_.document) return internal_error("rig config has no parsed document");
+
+  bool any_sim = false;
+  for (const DeviceConfig& d : rig->config_.devices) any_sim = any_sim || d.backend == "sim";
+
+  // Second pass over the document: the world's options, then each device's own map, read by its
+  // backend (unknown keys are reported by read_config, naming file, line and key).
+  std::vector<Status> device_errors;
+  Status read = read_config(*rig->config_.document, [&](ConfigNode root) {
+    root.allow_unknown_keys();
+    devices::sim::WorldOptions world_options;
+    world_options.seed = rig->config_.seed;
+    if (std::optional<ConfigNode> w = root.find("world")) w->get(world_options);
+    if (!root.status().ok()) return root.status();
+    if (any_sim) {
+      rig->world_ = std::make_shared<devices::sim::World>(world_options, rig->clock_);
+    }
+    std::optional<ConfigNode> devs = root.find("devices");
+    if (!devs) return root.status();
+    auto entries = devs->entries();
+    if (!entries) return root.status();
+    for (auto& [name, node] : *entries) {
+      const DeviceConfig* cfg = rig->config_.find(name);
+      if (cfg == nullptr) continue;
+      devices::DeviceContext ctx;
+      ctx.name = name;
+      ctx.backend = cfg->backend;
+      ctx.clock = rig->clock_;
+      ctx.world = rig->world_;
+      Result<std::unique_ptr<devices::Device>> made = rig->registry_.create(cfg->kind, ctx);
+      if (!made.ok()) {
+        node.error("backend", made.status().message());
+        continue;
+      }
+      std::string ignored;
+      node.optional("kind", ignored);
+      node.optional("backend", ignored);
+      Status configured = (*made)->configure(node);
+      if (!configured.ok()) {
+        // Config-reading errors are already recorded at their line; others (a device that
+        // refuses) are reported with the device's name.
+        if (node.status().ok())
+          device_errors.push_back(configured.with_context("device '" + name + "'"));
+        continue;
+      }
+      rig->devices_.push_back(std::move(made).value());
+    }
+    return root.status();
+  });
+  HC_RETURN_IF_ERROR(read);
+  for (const Status& s : device_errors) return s;
+  return rig;
+}
+
+Rig::~Rig() {
+  for (auto& d : devices_) {
+    if (d->state() == devices::DeviceState::kActive || d->state() == devices::DeviceState::kError)
+      (void)d->deactivate();
+  }
+}
+
+devices::Device* Rig::find(std::string_view name) const {
+  for (const auto& d : devices_)
+    if (d->name() == name) return d.get();
+  return nullptr;
+}
+
+Json Rig::devices_json() const {
+  Json out = Json::array();
+  for (const auto& d : devices_) {
+    const devices::DeviceInfo info = d->info();
+    Json details = Json::object();
+    for (const auto& [k, v] : info.details) details[k] = v;
+    Json j{{"name", info.name},       {"kind", devices::to_string(info.kind)},
+           {"backend", info.backend}, {"state", devices::to_string(info.state)},
+           {"model", info.model},     {"serial", info.serial},
+           {"details", details},      {"stats", stats_json(d->stats())}};
+    if (Status e = d->error(); !e.ok()) j["error"] = e.message();
+    out.push_back(std::move(j));
+  }
+  return out;
+}
+
+}  // namespace hc::rig

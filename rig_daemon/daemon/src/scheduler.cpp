@@ -1,0 +1,901 @@
+#include "rig_daemon/daemon/scheduler.h"
+
+#include <algorithm>
+#include <cmath>
+#include <sstream>
+
+#include "rig_daemon/daemon/session_layout.h"
+#include "rig_daemon/devices/codec.h"
+#include "rig_daemon/recording/foxglove_image.h"
+#include "rig_daemon/recording/session_conventions.h"
+
+namespace hc::rig {
+
+namespace rec = hc::recording;
+namespace dev = hc::devices;
+
+namespace {
+
+// Below this force magnitude the probe is taken to be out of contact (the sim F/T noise is a few
+// hundredths of a newton; ATI Nano25 resolution is 1/24 N, thesis 5.6).
+constexpr double kContactForceN = 0.2;
+// A step is reached when the force is within this fraction of the level below its target.
+constexpr double kStepTolerance = 0.02;
+// Probe increments while seeking a step's force stay within [step_m / 20, 5 step_m].
+constexpr int kMaxSeekMovesPerStep = 40;
+// Samples averaged for the "current force" (about 1.4 ms of a 7 kHz stream).
+constexpr std::size_t kForceWindow = 10;
+constexpr double kApproachSpeedMps = 0.05;
+constexpr double kPressSpeedMps = 0.02;
+// How long to wait for the frames and samples of one trigger edge.
+constexpr std::int64_t kEdgeTimeoutNs = 2'000'000'000;
+// Progress events at most this often.
+constexpr std::int64_t kProgressPeriodNs = 100'000'000;
+
+rec::Bytes to_bytes(const std::string& s) { return rec::Bytes(s.begin(), s.end()); }
+
+double norm3(const std::array<double, 3>& v) {
+  return std::sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]);
+}
+
+Json pose_json(const dev::ArmPose& p) {
+  return Json{{"x_m", p.x_m}, {"y_m", p.y_m}, {"z_m", p.z_m}, {"yaw_rad", p.yaw_rad}};
+}
+
+std::string_view kSyncSchema =
+    R"({"type":"object","title":"hardcopy.SyncRecord","properties":{)"
+    R"("trigger_index":{"type":"integer"},"edge_host_ns":{"type":"integer","description":"host monotonic ns of the rising edge"},)"
+    R"("complete":{"type":"boolean"},"frames":{"type":"object","description":"camera -> frame_index"},)"
+    R"("missing_cameras":{"type":"array","items":{"type":"string"}},"ft_sequence":{"type":"integer"},)"
+    R"("ft_error_ns":{"type":"integer","description":"F/T sample host time - edge host time, ns"},)"
+    R"("force_n":{"type":"array","items":{"type":"number"},"description":"Fx Fy Fz, N"},)"
+    R"("fsr_sequence":{"type":"integer"},"fsr_error_ns":{"type":"integer"},"fsr_raw":{"type":"integer"},)"
+    R"("fsr_force_n":{"type":"number","description":"N"}}})";
+std::string_view kStepSchema =
+    R"({"type":"object","title":"hardcopy.Step","properties":{)"
+    R"("host_ns":{"type":"integer"},"location":{"type":"integer"},"level":{"type":"integer"},)"
+    R"("step":{"type":"integer"},"target_force_n":{"type":"number"},"force_n":{"type":"number"},)"
+    R"("depth_m":{"type":"number"},"pose":{"type":"object"},"trigger_indices":{"type":"array","items":{"type":"integer"}}}})";
+std::string_view kEventSchema =
+    R"({"type":"object","title":"hardcopy.Event","properties":{)"
+    R"("host_ns":{"type":"integer"},"kind":{"type":"string"},"message":{"type":"string"}}})";
+std::string_view kTruthSchema =
+    R"({"type":"object","title":"hardcopy.GroundTruth","properties":{)"
+    R"("host_ns":{"type":"integer"},"trigger_index":{"type":"integer"},"probe":{"type":"object"},)"
+    R"("indentation_m":{"type":"number"},"force_n":{"type":"number","description":"true contact force, N"},)"
+    R"("markers_m":{"type":"array","items":{"type":"array","items":{"type":"number"}}}}})";
+
+}  // namespace
+
+std::string_view to_string(SessionState s) {
+  switch (s) {
+    case SessionState::kIdle:
+      return "idle";
+    case SessionState::kStarting:
+      return "starting";
+    case SessionState::kRunning:
+      return "running";
+    case SessionState::kPaused:
+      return "paused";
+    case SessionState::kFinished:
+      return "finished";
+    case SessionState::kStopped:
+      return "stopped";
+    case SessionState::kAborted:
+      return "aborted";
+    case SessionState::kFailed:
+      return "failed";
+  }
+  return "unknown";
+}
+
+// ------------------------------------------------------------------------------------------------
+
+struct Session::Impl {
+  Impl(Session& s, Rig& r, SessionOptions o) : self(s), rig(r), opts(std::move(o)) {}
+
+  Session& self;
+  Rig& rig;
+  SessionOptions opts;
+  dev::Clock& clock() { return rig.clock(); }
+
+  // Devices of this session.
+  dev::Trigger* trigger = nullptr;
+  std::vector<dev::Camera*> cameras;
+  dev::ForceTorque* ft = nullptr;
+  dev::Fsr* fsr = nullptr;
+  dev::Arm* arm = nullptr;
+  std::vector<dev::Device*> used;
+
+  std::unique_ptr<Recorder> recorder;
+  std::unique_ptr<Associator> assoc;
+  std::unique_ptr<SafetyMonitor> safety;
+
+  // Channels.
+  std::uint16_t ch_edges = 0, ch_ft = 0, ch_fsr = 0, ch_arm_state = 0, ch_arm_cmd = 0;
+  std::vector<std::uint16_t> ch_cams;
+  std::uint16_t ch_sync = 0, ch_steps = 0, ch_events = 0, ch_truth = 0;
+  bool have_truth = false;
+
+  // Control flags (any thread).
+  std::atomic<bool> stop_requested{false};
+  std::atomic<bool> pause_requested{false};
+  std::atomic<bool> estop_requested{false};
+
+  // Loop state (session thread).
+  std::int64_t next_cycle_ns = 0;
+  std::int64_t period_ns = 1'000'000;
+  std::int64_t last_ft_ns = -1;
+  std::int64_t armed_since_ns = -1;  // stall checks run while >= 0
+  std::deque<double> recent_force;
+  std::uint64_t edges_received = 0;
+  std::optional<std::uint64_t> last_edge_index;
+  std::uint64_t arm_command_sequence = 0;
+  std::optional<dev::ArmState> last_arm;
+  std::optional<SafetyTrip> trip;
+  std::string end_reason;
+  std::int64_t last_progress_ns = 0;
+  std::int64_t start_ns = 0;
+  std::int64_t max_cycle_gap_ns = 0;
+  std::int64_t last_cycle_ns = -1;
+
+  // Scratch buffers.
+  std::vector<dev::TriggerEdge> edges_buf;
+  std::vector<dev::Frame> frames_buf;
+  std::vector<dev::WrenchSample> ft_buf;
+  std::vector<dev::FsrSample> fsr_buf;
+  rec::Bytes image_buf;
+
+  // Progress (guarded).
+  mutable std::mutex progress_mutex;
+  Json progress_json = Json::object();
+  std::int64_t done = 0;
+  std::int64_t total = 0;
+  std::string step_text;
+
+  // ---------------------------------------------------------------------------------------------
+  Status setup();
+  Status poll();
+  Status cycle();
+  Status wait_for(const std::function<bool()>& done_pred, std::int64_t timeout_ns,
+                  std::string_view what);
+  Status pause_point();
+  void record_event(std::string_view kind, const std::string& message);
+  void handle_trip(SafetyTrip t);
+  void update_progress(bool force_event);
+  Status run_hand_held();
+  Status run_automated();
+  Status move_to(const dev::ArmPose& pose, double speed);
+  Status fire_and_collect(std::vector<std::uint64_t>& indices);
+  double current_force() const;
+  void record_arm_state(const dev::ArmState& s);
+  Json finish(Status run_status);
+};
+
+Status Session::validate(const Rig& rig, const Plan& plan) {
+  const auto need = [&](const std::string& name, DeviceKind kind, std::string_view role) -> Status {
+    const dev::Device* d = rig.find(name);
+    if (d == nullptr)
+      return invalid_argument("plan '" + plan.name + "': " + std::string(role) + " '" + name +
+                              "' is not a device of this rig");
+    if (d->kind() != kind)
+      return invalid_argument("plan '" + plan.name + "': device '" + name + "' is a " +
+                              std::string(dev::to_string(d->kind())) + ", not a " +
+                              std::string(dev::to_string(kind)));
+    return {};
+  };
+  const RigConfig& cfg = rig.config();
+  if (plan.protocol == Protocol::kHandHeld) {
+    for (const std::string& c : plan.hand_held.cameras)
+      HC_RETURN_IF_ERROR(need(c, DeviceKind::kCamera, "camera"));
+    HC_RETURN_IF_ERROR(need(plan.hand_held.fsr, DeviceKind::kFsr, "fsr"));
+    if (cfg.first(DeviceKind::kTrigger) == nullptr)
+      return invalid_argument("plan '" + plan.name + "': the rig has no trigger device");
+    return {};
+  }
+  const AutomatedPlan& p = plan.automated;
+  for (const std::string& c : p.cameras) HC_RETURN_IF_ERROR(need(c, DeviceKind::kCamera, "camera"));
+  HC_RETURN_IF_ERROR(need(p.force_torque, DeviceKind::kForceTorque, "force_torque"));
+  HC_RETURN_IF_ERROR(need(p.arm, DeviceKind::kArm, "arm"));
+  HC_RETURN_IF_ERROR(need(p.trigger_device, DeviceKind::kTrigger, "trigger_device"));
+  HC_ASSIGN_OR_RETURN(SafetyLimits limits,
+                      combine_limits(cfg.workspace, cfg.max_force_n, cfg.stall_timeout_s,
+                                     &p.workspace, &p.max_force_n));
+  SafetyMonitor monitor(limits);
+  for (std::size_t i = 0; i < p.locations.size(); ++i) {
+    const auto& l = p.locations[i];
+    dev::ArmPose pose{l.position_m[0], l.position_m[1], l.position_m[2], 0.0};
+    if (Status s = monitor.check_target(pose); !s.ok())
+      return invalid_argument("plan '" + plan.name + "': locations[" + std::to_string(i) +
+                              "]: " + s.message() + " (the rig's and the plan's boxes combined)");
+  }
+  return {};
+}
+
+Session::Session(Rig& rig, SessionOptions options)
+    : impl_(std::make_unique<Impl>(*this, rig, std::move(options))) {}
+
+Session::~Session() = default;
+
+void Session::pause() { impl_->pause_requested = true; }
+void Session::resume() { impl_->pause_requested = false; }
+void Session::stop() { impl_->stop_requested = true; }
+void Session::estop() {
+  // Arm::stop() is safe from any thread; the session loop sees the flag within one cycle and
+  // stops the trigger and the protocol too.
+  impl_->estop_requested = true;
+  if (impl_->arm != nullptr) (void)impl_->arm->stop();
+}
+
+Json Session::progress() const {
+  std::lock_guard lock(impl_->progress_mutex);
+  Json j = impl_->progress_json;
+  j["state"] = to_string(state_.load());
+  return j;
+}
+
+// ---- setup ----------------------------------------------------------------------------------
+
+Status Session::Impl::setup() {
+  const Plan& plan = opts.plan;
+  const RigConfig& cfg = rig.config();
+  period_ns = static_cast<std::int64_t>(std::llround(cfg.control_period_s * 1e9));
+  std::vector<std::string> cam_names;
+  Associator::Options ao;
+  if (plan.protocol == Protocol::kHandHeld) {
+    cam_names = plan.hand_held.cameras;
+    trigger = rig.get<dev::Trigger>(cfg.first(DeviceKind::kTrigger)->name);
+    fsr = rig.get<dev::Fsr>(plan.hand_held.fsr);
+    ao.want_fsr = true;
+    HC_ASSIGN_OR_RETURN(SafetyLimits limits, combine_limits(cfg.workspace, cfg.max_force_n,
+                                                            cfg.stall_timeout_s, nullptr, nullptr));
+    safety = std::make_unique<SafetyMonitor>(limits);
+  } else {
+    const AutomatedPlan& p = plan.automated;
+    cam_names = p.cameras;
+    trigger = rig.get<dev::Trigger>(p.trigger_device);
+    ft = rig.get<dev::ForceTorque>(p.force_torque);
+    arm = rig.get<dev::Arm>(p.arm);
+    ao.want_ft = true;
+    HC_ASSIGN_OR_RETURN(SafetyLimits limits,
+                        combine_limits(cfg.workspace, cfg.max_force_n, cfg.stall_timeout_s,
+                                       &p.workspace, &p.max_force_n));
+    safety = std::make_unique<SafetyMonitor>(limits);
+  }
+  for (const std::string& c : cam_names) cameras.push_back(rig.get<dev::Camera>(c));
+  ao.cameras = cam_names;
+  assoc = std::make_unique<Associator>(ao);
+
+  used.clear();
+  if (trigger) used.push_back(trigger);
+  for (dev::Camera* c : cameras) used.push_back(c);
+  if (ft) used.push_back(ft);
+  if (fsr) used.push_back(fsr);
+  if (arm) used.push_back(arm);
+
+  // The file and its channels.
+  std::error_code ec;
+  std::filesystem::create_directories(opts.path.parent_path(), ec);
+  HC_ASSIGN_OR_RETURN(recorder, Recorder::open(opts.path, opts.recorder));
+  const auto meta = [](const dev::Device& d) {
+    return rec::StringMap{{"device", d.name()},
+                          {"kind", std::string(dev::to_string(d.kind()))},
+                          {"backend", d.backend()}};
+  };
+  const rec::StringMap session_meta{{"device", "session"}, {"kind", "session"}, {"backend", ""}};
+  if (trigger) {
+    const auto& s = dev::trigger_edge_schema();
+    HC_ASSIGN_OR_RETURN(ch_edges, recorder->add_json_channel(trigger_topic(trigger->name()), s.name,
+                                                             s.json_schema, meta(*trigger)));
+  }
+  for (dev::Camera* c : cameras) {
+    rec::StringMap m = meta(*c);
+    const dev::CameraInfo info = c->camera_info();
+    m["width"] = std::to_string(info.width);
+    m["height"] = std::to_string(info.height);
+    m["format"] = std::string(dev::to_string(info.format));
+    m["trigger_mode"] = std::string(dev::to_string(info.trigger_mode));
+    HC_ASSIGN_OR_RETURN(std::uint16_t id, recorder->add_image_channel(camera_topic(c->name()), m));
+    ch_cams.push_back(id);
+  }
+  if (ft) {
+    const auto& s = dev::wrench_sample_schema();
+    rec::StringMap m = meta(*ft);
+    m["counts_per_n"] = std::to_string(ft->calibration().counts_per_n);
+    m["counts_per_nm"] = std::to_string(ft->calibration().counts_per_nm);
+    m["sample_rate_hz"] = std::to_string(ft->sample_rate_hz());
+    HC_ASSIGN_OR_RETURN(
+        ch_ft, recorder->add_json_channel(wrench_topic(ft->name()), s.name, s.json_schema, m));
+  }
+  if (fsr) {
+    const auto& s = dev::fsr_sample_schema();
+    HC_ASSIGN_OR_RETURN(ch_fsr, recorder->add_json_channel(fsr_topic(fsr->name()), s.name,
+                                                           s.json_schema, meta(*fsr)));
+  }
+  if (arm) {
+    const auto& s = dev::arm_state_schema();
+    HC_ASSIGN_OR_RETURN(ch_arm_state,
+                        recorder->add_json_channel(arm_state_topic(arm->name()), s.name,
+                                                   s.json_schema, meta(*arm)));
+    const auto& c = dev::arm_command_schema();
+    HC_ASSIGN_OR_RETURN(ch_arm_cmd, recorder->add_json_channel(arm_command_topic(arm->name()),
+                                                               c.name, c.json_schema, meta(*arm)));
+  }
+  HC_ASSIGN_OR_RETURN(ch_sync, recorder->add_json_channel(kSyncTopic, "hardcopy.SyncRecord",
+                                                          kSyncSchema, session_meta));
+  HC_ASSIGN_OR_RETURN(ch_steps, recorder->add_json_channel(kStepsTopic, "hardcopy.Step",
+                                                           kStepSchema, session_meta));
+  HC_ASSIGN_OR_RETURN(ch_events, recorder->add_json_channel(kEventsTopic, "hardcopy.Event",
+                                                            kEventSchema, session_meta));
+  have_truth = rig.world() != nullptr;
+  if (have_truth) {
+    HC_ASSIGN_OR_RETURN(
+        ch_truth,
+        recorder->add_json_channel(
+            kGroundTruthTopic, "hardcopy.GroundTruth", kTruthSchema,
+            rec::StringMap{{"device", "world"}, {"kind", "ground_truth"}, {"backend", "sim"}}));
+  }
+
+  // Opening metadata: rig config, plan, specimen, software, calibration.
+  HC_RETURN_IF_ERROR(recorder->write_metadata_now(
+      rec::kMetadataRigConfig, {{"yaml", cfg.source_text}, {"source", cfg.source_name}}));
+  HC_RETURN_IF_ERROR(recorder->write_metadata_now(
+      rec::kMetadataPlan, {{"yaml", plan.source_text}, {"json", plan.to_json().dump()}}));
+  rec::StringMap specimen(plan.specimen.begin(), plan.specimen.end());
+  if (rig.world() != nullptr) specimen["simulated_specimen"] = rig.world()->specimen().name();
+  HC_RETURN_IF_ERROR(recorder->write_metadata_now(rec::kMetadataSpecimen, specimen));
+  HC_RETURN_IF_ERROR(recorder->write_metadata_now(
+      rec::kMetadataSoftware, {{"name", "hardcopy rigd"}, {"version", opts.software_version}}));
+  Json calib = Json::object();
+  if (ft)
+    calib[ft->name()] = {{"counts_per_n", ft->calibration().counts_per_n},
+                         {"counts_per_nm", ft->calibration().counts_per_nm}};
+  if (fsr) {
+    const dev::FsrCalibration c = fsr->calibration();
+    calib[fsr->name()] = {{"full_scale", c.full_scale},
+                          {"threshold", c.threshold},
+                          {"scale_n", c.scale_n},
+                          {"exponent", c.exponent}};
+  }
+  for (dev::Camera* c : cameras) {
+    const dev::CameraInfo i = c->camera_info();
+    calib[c->name()] = {{"width", i.width},
+                        {"height", i.height},
+                        {"format", dev::to_string(i.format)},
+                        {"exposure_s", i.exposure_s}};
+  }
+  HC_RETURN_IF_ERROR(
+      recorder->write_metadata_now(rec::kMetadataCalibration, {{"json", calib.dump()}}));
+  recorder->start();
+
+  if (have_truth) {
+    rig.world()->set_ground_truth_callback([this](const dev::sim::GroundTruth& t) {
+      Json j{{"host_ns", t.host_ns},
+             {"probe", pose_json(t.probe)},
+             {"indentation_m", t.indentation_m},
+             {"force_n", t.force_n}};
+      if (t.trigger_index) j["trigger_index"] = *t.trigger_index;
+      Json markers = Json::array();
+      for (const auto& m : t.markers_m) markers.push_back(Json::array({m.x(), m.y(), m.z()}));
+      j["markers_m"] = std::move(markers);
+      recorder->write(ch_truth, t.host_ns, t.host_ns,
+                      static_cast<std::uint32_t>(t.trigger_index.value_or(0)),
+                      rec::json_message(j));
+    });
+  }
+
+  // Start the devices (a device left in error by an earlier session is reset first).
+  for (dev::Device* d : used) {
+    if (d->state() == dev::DeviceState::kError) HC_RETURN_IF_ERROR(d->reset());
+    if (d->state() == dev::DeviceState::kActive) HC_RETURN_IF_ERROR(d->deactivate());
+    HC_RETURN_IF_ERROR(d->activate());
+  }
+  return {};
+}
+
+// ---- the control cycle ----------------------------------------------------------------------
+
+void Session::Impl::record_event(std::string_view kind, const std::string& message) {
+  const std::int64_t now = clock().now_ns();
+  recorder->write(ch_events, now, now, 0,
+                  rec::json_message(Json{{"host_ns", now}, {"kind", kind}, {"message", message}}));
+  if (opts.on_event) opts.on_event("log", Json{{"kind", kind}, {"message", message}});
+}
+
+void Session::Impl::handle_trip(SafetyTrip t) {
+  if (trip) return;  // the first trip is the one that counts
+  if (arm != nullptr) (void)arm->stop();
+  t.stop_sent_ns = clock().now_ns();
+  if (trigger != nullptr && trigger->state() == dev::DeviceState::kActive) (void)trigger->stop();
+  trip = t;
+  const std::int64_t now = t.stop_sent_ns;
+  Json j = t.to_json();
+  j["host_ns"] = now;
+  j["kind"] = to_string(t.kind);
+  recorder->write(ch_events, now, now, 0, rec::json_message(j));
+  if (opts.on_event) opts.on_event("safety", j);
+}
+
+double Session::Impl::current_force() const {
+  if (recent_force.empty()) return 0.0;
+  double s = 0.0;
+  for (double f : recent_force) s += f;
+  return s / static_cast<double>(recent_force.size());
+}
+
+void Session::Impl::record_arm_state(const dev::ArmState& s) {
+  recorder->write(ch_arm_state, s.host_ns, s.device_stamp_ns.value_or(s.host_ns),
+                  static_cast<std::uint32_t>(s.sequence), to_bytes(dev::to_json(s)));
+  last_arm = s;
+}
+
+Status Session::Impl::poll() {
+  const std::int64_t now0 = clock().now_ns();
+  if (estop_requested && !trip) {
+    SafetyTrip t;
+    t.kind = SafetyTrip::Kind::kEstop;
+    t.message = "emergency stop requested";
+    t.detected_ns = now0;
+    t.sample_host_ns = now0;
+    handle_trip(t);
+  }
+  const auto device_failed = [&](dev::Device& d, const Status& s) {
+    SafetyTrip t;
+    t.kind = SafetyTrip::Kind::kDeviceError;
+    t.message = std::string(dev::to_string(d.kind())) + " '" + d.name() + "': " + s.message();
+    t.detected_ns = clock().now_ns();
+    t.sample_host_ns = t.detected_ns;
+    handle_trip(t);
+  };
+  if (trigger) {
+    edges_buf.clear();
+    Result<std::size_t> n = trigger->read(edges_buf, dev::Duration(0));
+    if (!n.ok()) {
+      device_failed(*trigger, n.status());
+    } else {
+      for (const dev::TriggerEdge& e : edges_buf) {
+        recorder->write(ch_edges, e.host_ns, e.device_stamp_ns.value_or(e.host_ns),
+                        static_cast<std::uint32_t>(e.device_counter), to_bytes(dev::to_json(e)));
+        assoc->add_edge(e);
+        if (e.rising) {
+          ++edges_received;
+          last_edge_index = e.index;
+        }
+      }
+    }
+  }
+  if (ft) {
+    ft_buf.clear();
+    Result<std::size_t> n = ft->read(ft_buf, dev::Duration(0));
+    if (!n.ok()) {
+      device_failed(*ft, n.status());
+    } else {
+      for (const dev::WrenchSample& s : ft_buf) {
+        // Safety first: the stop goes out before the sample is even queued for the disk.
+        if (std::optional<SafetyTrip> t = safety->check_wrench(s, clock().now_ns()))
+          handle_trip(*t);
+        recorder->write(ch_ft, s.host_ns, s.device_stamp_ns.value_or(s.host_ns), s.rdt_sequence,
+                        to_bytes(dev::to_json(s)));
+        assoc->add_wrench(s);
+        last_ft_ns = s.host_ns;
+        recent_force.push_back(norm3(s.force_n));
+        if (recent_force.size() > kForceWindow) recent_force.pop_front();
+      }
+    }
+  }
+  for (std::size_t i = 0; i < cameras.size(); ++i) {
+    frames_buf.clear();
+    Result<std::size_t> n = cameras[i]->read(frames_buf, dev::Duration(0));
+    if (!n.ok()) {
+      device_failed(*cameras[i], n.status());
+      continue;
+    }
+    for (const dev::Frame& f : frames_buf) {
+      const std::int64_t stamp = f.device_stamp_ns.value_or(f.host_ns);
+      rec::encode_raw_image_view(stamp, cameras[i]->name(), f.width, f.height,
+                                 dev::foxglove_encoding(f.format), f.stride_bytes,
+                                 rec::ByteSpan(f.pixels.data(), f.pixels.size()), image_buf);
+      recorder->write(ch_cams[i], f.host_ns, stamp, static_cast<std::uint32_t>(f.frame_id),
+                      image_buf);
+      assoc->add_frame(cameras[i]->name(), f);
+    }
+  }
+  if (fsr) {
+    fsr_buf.clear();
+    Result<std::size_t> n = fsr->read(fsr_buf, dev::Duration(0));
+    if (!n.ok()) {
+      device_failed(*fsr, n.status());
+    } else {
+      for (const dev::FsrSample& s : fsr_buf) {
+        recorder->write(ch_fsr, s.host_ns, s.device_stamp_ns.value_or(s.host_ns),
+                        static_cast<std::uint32_t>(s.sequence), to_bytes(dev::to_json(s)));
+        assoc->add_fsr(s);
+      }
+    }
+  }
+  const std::int64_t now = clock().now_ns();
+  if (ft && !trip) {
+    if (std::optional<SafetyTrip> t =
+            safety->check_stall(armed_since_ns >= 0, last_ft_ns, armed_since_ns, now))
+      handle_trip(*t);
+  }
+  for (SyncRecord& r : assoc->take_ready(now)) {
+    recorder->write(ch_sync, r.edge_host_ns, r.edge_host_ns,
+                    static_cast<std::uint32_t>(r.trigger_index), rec::json_message(r.to_json()));
+    std::lock_guard lock(progress_mutex);
+    ++done;
+  }
+  if (Status e = recorder->error(); !e.ok()) return e.with_context("recording");
+  return {};
+}
+
+Status Session::Impl::cycle() {
+  HC_RETURN_IF_ERROR(poll());
+  update_progress(false);
+  if (trip) return Status(StatusCode::kCancelled, trip->message);
+  if (stop_requested) return Status(StatusCode::kCancelled, "stopped on request");
+  const std::int64_t now = clock().now_ns();
+  if (last_cycle_ns >= 0) max_cycle_gap_ns = std::max(max_cycle_gap_ns, now - last_cycle_ns);
+  last_cycle_ns = now;
+  next_cycle_ns += period_ns;
+  if (next_cycle_ns < now) next_cycle_ns = now + period_ns;  // fell behind: do not burst
+  clock().sleep_until_ns(next_cycle_ns);
+  return {};
+}
+
+Status Session::Impl::wait_for(const std::function<bool()>& pred, std::int64_t timeout_ns,
+                               std::string_view what) {
+  const std::int64_t deadline = clock().now_ns() + timeout_ns;
+  while (true) {
+    HC_RETURN_IF_ERROR(cycle());
+    if (pred()) return {};
+    if (clock().now_ns() > deadline)
+      return Status(StatusCode::kDeadlineExceeded, "timed out waiting for " + std::string(what));
+  }
+}
+
+Status Session::Impl::pause_point() {
+  if (!pause_requested) return {};
+  self.state_ = SessionState::kPaused;
+  record_event("pause", "paused on request");
+  update_progress(true);
+  while (pause_requested) HC_RETURN_IF_ERROR(cycle());
+  self.state_ = SessionState::kRunning;
+  record_event("resume", "resumed on request");
+  update_progress(true);
+  return {};
+}
+
+void Session::Impl::update_progress(bool force_event) {
+  const std::int64_t now = clock().now_ns();
+  if (!force_event && now - last_progress_ns < kProgressPeriodNs) return;
+  last_progress_ns = now;
+  Json j;
+  {
+    std::lock_guard lock(progress_mutex);
+    j = Json{{"session", opts.path.string()},
+             {"plan", opts.plan.name},
+             {"protocol", to_string(opts.plan.protocol)},
+             {"done", done},
+             {"total", total},
+             {"step", step_text},
+             {"force_n", current_force()},
+             {"elapsed_s", double(now - start_ns) * 1e-9},
+             {"association", assoc->stats().to_json()}};
+    if (trip) j["trip"] = trip->to_json();
+    progress_json = j;
+  }
+  j["state"] = to_string(self.state_.load());
+  if (opts.on_event) opts.on_event("progress", j);
+}
+
+// ---- protocols ------------------------------------------------------------------------------
+
+Status Session::Impl::run_hand_held() {
+  const HandHeldPlan& p = opts.plan.hand_held;
+  std::uint64_t remaining = static_cast<std::uint64_t>(opts.plan.expected_triggers());
+  const std::uint64_t target = remaining;
+  const std::uint64_t first = edges_received;
+  const double period_s = 1.0 / p.trigger.rate_hz;
+  while (remaining > 0) {
+    dev::PulseTrain train{p.trigger.rate_hz, p.trigger.pulse_width_s, remaining};
+    HC_RETURN_IF_ERROR(trigger->start(train));
+    {
+      std::lock_guard lock(progress_mutex);
+      step_text = "trigger " + std::to_string(p.trigger.rate_hz) + " Hz";
+    }
+    // Run until the train ends or a pause is asked for.
+    const std::int64_t timeout =
+        static_cast<std::int64_t>((static_cast<double>(remaining) * period_s + 5.0) * 1e9);
+    HC_RETURN_IF_ERROR(wait_for([&] { return edges_received - first >= target || pause_requested; },
+                                timeout, "the trigger's pulses"));
+    remaining = target - std::min(target, edges_received - first);
+    if (pause_requested) {
+      (void)trigger->stop();
+      HC_RETURN_IF_ERROR(pause_point());
+      // Edges fired before the stop took effect still arrive.
+      HC_RETURN_IF_ERROR(cycle());
+      remaining = target - std::min(target, edges_received - first);
+    }
+  }
+  // Wait for the last frames and samples.
+  return wait_for([&] { return assoc->idle(); }, kEdgeTimeoutNs + 100'000'000,
+                  "the last frames and samples");
+}
+
+Status Session::Impl::move_to(const dev::ArmPose& pose, double speed) {
+  if (Status s = safety->check_target(pose); !s.ok()) {
+    SafetyTrip t;
+    t.kind = SafetyTrip::Kind::kWorkspace;
+    t.message = s.message();
+    t.detected_ns = clock().now_ns();
+    t.sample_host_ns = t.detected_ns;
+    handle_trip(t);
+    return Status(StatusCode::kCancelled, s.message());
+  }
+  dev::ArmCommand cmd;
+  cmd.type = dev::ArmCommand::Type::kMoveTo;
+  cmd.target = pose;
+  cmd.speed_m_s = std::min(speed, arm->limits().max_speed_m_s);
+  cmd.sequence = ++arm_command_sequence;
+  const std::int64_t now = clock().now_ns();
+  recorder->write(ch_arm_cmd, now, now, static_cast<std::uint32_t>(cmd.sequence),
+                  to_bytes(dev::to_json(cmd)));
+  HC_RETURN_IF_ERROR(arm->write(cmd));
+  double dist = 0.0;
+  if (last_arm) {
+    const dev::ArmPose& a = last_arm->pose;
+    dist = std::sqrt((a.x_m - pose.x_m) * (a.x_m - pose.x_m) +
+                     (a.y_m - pose.y_m) * (a.y_m - pose.y_m) +
+                     (a.z_m - pose.z_m) * (a.z_m - pose.z_m));
+  }
+  const auto timeout = static_cast<std::int64_t>((2.0 * dist / cmd.speed_m_s + 2.0) * 1e9);
+  Status arm_error;
+  HC_RETURN_IF_ERROR(wait_for(
+      [&] {
+        Result<dev::ArmState> st = arm->read();
+        if (!st.ok()) {
+          arm_error = st.status();
+          return true;
+        }
+        record_arm_state(*st);
+        if (st->motion == dev::ArmMotion::kFault) {
+          arm_error = Status(StatusCode::kUnavailable, "arm fault: " + st->fault);
+          return true;
+        }
+        return st->command_sequence >= cmd.sequence && st->motion == dev::ArmMotion::kHolding;
+      },
+      timeout, "the arm to reach its target"));
+  return arm_error;
+}
+
+Status Session::Impl::fire_and_collect(std::vector<std::uint64_t>& indices) {
+  for (int f = 0; f < opts.plan.automated.frames_per_step; ++f) {
+    const std::uint64_t before = edges_received;
+    HC_RETURN_IF_ERROR(trigger->fire());
+    HC_RETURN_IF_ERROR(
+        wait_for([&] { return edges_received > before; }, kEdgeTimeoutNs, "the trigger edge"));
+    const std::uint64_t index = *last_edge_index;
+    indices.push_back(index);
+    // Wait until its frames and force sample are in (or the associator gave up on them).
+    Status s = wait_for([&] { return assoc->complete(index) || assoc->idle(); }, kEdgeTimeoutNs,
+                        "the frames of a trigger edge");
+    if (s.code() == StatusCode::kDeadlineExceeded) {
+      record_event("late", "trigger edge " + std::to_string(index) + ": " + s.message());
+      continue;
+    }
+    HC_RETURN_IF_ERROR(s);
+  }
+  return {};
+}
+
+Status Session::Impl::run_automated() {
+  const AutomatedPlan& p = opts.plan.automated;
+  // Home the arm if needed.
+  HC_ASSIGN_OR_RETURN(dev::ArmState st, arm->read());
+  record_arm_state(st);
+  if (!st.homed) {
+    dev::ArmCommand home;
+    home.type = dev::ArmCommand::Type::kHome;
+    home.sequence = ++arm_command_sequence;
+    const std::int64_t now = clock().now_ns();
+    recorder->write(ch_arm_cmd, now, now, static_cast<std::uint32_t>(home.sequence),
+                    to_bytes(dev::to_json(home)));
+    HC_RETURN_IF_ERROR(arm->write(home));
+    Status arm_error;
+    HC_RETURN_IF_ERROR(wait_for(
+        [&] {
+          Result<dev::ArmState> s = arm->read();
+          if (!s.ok()) {
+            arm_error = s.status();
+            return true;
+          }
+          record_arm_state(*s);
+          return s->homed && s->motion != dev::ArmMotion::kHoming;
+        },
+        60'000'000'000, "the arm to home"));
+    HC_RETURN_IF_ERROR(arm_error);
+  }
+  // Tare the force sensor away from the specimen, then watch its stream from here on.
+  HC_RETURN_IF_ERROR(ft->bias());
+  armed_since_ns = clock().now_ns();
+  HC_RETURN_IF_ERROR(wait_for([&] { return last_ft_ns >= armed_since_ns; },
+                              std::max<std::int64_t>(safety->limits().stall_timeout_ns, 1), "F/T"));
+  recent_force.clear();
+
+  for (std::size_t li = 0; li < p.locations.size(); ++li) {
+    const ProbeLocation& loc = p.locations[li];
+    const dev::ArmPose start{loc.position_m[0], loc.position_m[1], loc.position_m[2], 0.0};
+    const auto at_depth = [&](double d) {
+      return dev::ArmPose{start.x_m + loc.direction[0] * d, start.y_m + loc.direction[1] * d,
+                          start.z_m + loc.direction[2] * d, 0.0};
+    };
+    for (std::size_t lv = 0; lv < p.force_levels_n.size(); ++lv) {
+      const double level = p.force_levels_n[lv];
+      HC_RETURN_IF_ERROR(pause_point());
+      HC_RETURN_IF_ERROR(move_to(start, kApproachSpeedMps));
+      double depth = 0.0;
+      double prev_depth = 0.0, prev_force = current_force();
+      double stiffness = 0.0;  // N/m, from the last move in contact
+      for (int k = 1; k <= p.steps; ++k) {
+        HC_RETURN_IF_ERROR(pause_point());
+        const double target = level * k / p.steps;
+        {
+          std::lock_guard lock(progress_mutex);
+          step_text = "location " + std::to_string(li + 1) + "/" +
+                      std::to_string(p.locations.size()) + ", level " + std::to_string(lv + 1) +
+                      "/" + std::to_string(p.force_levels_n.size()) + ", step " +
+                      std::to_string(k) + "/" + std::to_string(p.steps);
+        }
+        for (int m = 0; m < kMaxSeekMovesPerStep; ++m) {
+          const double f = current_force();
+          if (f >= target - kStepTolerance * level) break;
+          double inc = p.step_m;
+          if (f > kContactForceN && stiffness > 0.0) inc = (target - f) / stiffness;
+          inc = std::clamp(inc, p.step_m / 20.0, 5.0 * p.step_m);
+          if (depth + inc > p.max_depth_m) {
+            record_event("max_depth", "location " + std::to_string(li) + ": force " +
+                                          std::to_string(f) + " N below the target " +
+                                          std::to_string(target) + " N at max_depth_m");
+            break;
+          }
+          prev_depth = depth;
+          prev_force = f;
+          depth += inc;
+          HC_RETURN_IF_ERROR(move_to(at_depth(depth), kPressSpeedMps));
+          // Let the F/T window fill with samples taken at the new depth.
+          const std::int64_t t_moved = clock().now_ns();
+          HC_RETURN_IF_ERROR(wait_for([&] { return last_ft_ns > t_moved + 1'000'000; },
+                                      safety->limits().stall_timeout_ns, "F/T after a move"));
+          const double f_new = current_force();
+          if (f_new > kContactForceN && prev_force > kContactForceN && depth > prev_depth)
+            stiffness = std::max(1.0, (f_new - prev_force) / (depth - prev_depth));
+          else if (f_new > kContactForceN)
+            stiffness = std::max(1.0, f_new / inc);
+        }
+        if (p.settle_s > 0) {
+          const std::int64_t until = clock().now_ns() + static_cast<std::int64_t>(p.settle_s * 1e9);
+          HC_RETURN_IF_ERROR(wait_for([&] { return clock().now_ns() >= until; },
+                                      static_cast<std::int64_t>(p.settle_s * 1e9) + 1'000'000'000,
+                                      "settling"));
+        }
+        std::vector<std::uint64_t> indices;
+        HC_RETURN_IF_ERROR(fire_and_collect(indices));
+        const std::int64_t now = clock().now_ns();
+        Json step{{"host_ns", now},
+                  {"location", li},
+                  {"level", lv},
+                  {"step", k},
+                  {"target_force_n", target},
+                  {"force_n", current_force()},
+                  {"depth_m", depth},
+                  {"pose", pose_json(at_depth(depth))},
+                  {"trigger_indices", indices}};
+        recorder->write(ch_steps, now, now, static_cast<std::uint32_t>(k), rec::json_message(step));
+      }
+      // Retract before the next level or location.
+      HC_RETURN_IF_ERROR(move_to(start, kApproachSpeedMps));
+    }
+  }
+  return {};
+}
+
+// ---- run / finish -----------------------------------------------------------------------------
+
+Json Session::Impl::finish(Status run_status) {
+  // Collect what is still in flight (a last cycle without advancing the protocol), close records.
+  if (!trip) (void)poll();
+  for (SyncRecord& r : assoc->take_all()) {
+    recorder->write(ch_sync, r.edge_host_ns, r.edge_host_ns,
+                    static_cast<std::uint32_t>(r.trigger_index), rec::json_message(r.to_json()));
+    std::lock_guard lock(progress_mutex);
+    ++done;
+  }
+  if (trigger != nullptr && trigger->state() == dev::DeviceState::kActive) (void)trigger->stop();
+  for (dev::Device* d : used) (void)d->deactivate();
+  if (have_truth) rig.world()->set_ground_truth_callback(nullptr);
+
+  SessionState final_state = SessionState::kFinished;
+  std::string reason = "completed";
+  if (trip) {
+    final_state = SessionState::kAborted;
+    reason = std::string(to_string(trip->kind)) + ": " + trip->message;
+  } else if (stop_requested) {
+    final_state = SessionState::kStopped;
+    reason = "stopped on request";
+  } else if (!run_status.ok()) {
+    final_state = SessionState::kFailed;
+    reason = run_status.message();
+  }
+  if (!run_status.ok() && final_state == SessionState::kFailed) record_event("error", reason);
+
+  rec::StringMap stats;
+  Json devices_json = Json::object();
+  for (dev::Device* d : used) {
+    const dev::DeviceStats s = d->stats();
+    stats[d->name() + ".received"] = std::to_string(s.received);
+    stats[d->name() + ".lost"] = std::to_string(s.lost);
+    stats[d->name() + ".late"] = std::to_string(s.late);
+    stats[d->name() + ".incomplete"] = std::to_string(s.incomplete);
+    devices_json[d->name()] = stats_json(s);
+  }
+  recorder->write_metadata(std::string(rec::kMetadataDeviceStats), stats);
+  const AssociationStats& a = assoc->stats();
+  const std::int64_t end_ns = clock().now_ns();
+  Json summary{{"session", opts.path.string()},
+               {"plan", opts.plan.name},
+               {"protocol", to_string(opts.plan.protocol)},
+               {"state", to_string(final_state)},
+               {"reason", reason},
+               {"duration_s", double(end_ns - start_ns) * 1e-9},
+               {"expected_triggers", opts.plan.expected_triggers()},
+               {"association", a.to_json()},
+               {"devices", devices_json},
+               {"control_period_s", rig.config().control_period_s},
+               {"max_cycle_gap_ns", max_cycle_gap_ns}};
+  if (trip) summary["trip"] = trip->to_json();
+  rec::StringMap session_meta{
+      {"state", std::string(to_string(final_state))}, {"reason", reason}, {"json", summary.dump()}};
+  recorder->write_metadata(std::string(kMetadataSession), session_meta);
+  Result<rec::McapWriter::Summary> closed = recorder->close();
+  if (!closed.ok()) {
+    summary["state"] = to_string(SessionState::kFailed);
+    summary["reason"] = "recording: " + closed.status().message();
+    final_state = SessionState::kFailed;
+  } else {
+    summary["messages"] = closed->message_count;
+    summary["file_size"] = closed->file_size;
+  }
+  self.state_ = final_state;
+  {
+    std::lock_guard lock(progress_mutex);
+    progress_json = summary;
+  }
+  return summary;
+}
+
+Result<Json> Session::run() {
+  Impl& m = *impl_;
+  state_ = SessionState::kStarting;
+  m.start_ns = m.clock().now_ns();
+  m.next_cycle_ns = m.start_ns;
+  m.total = m.opts.plan.expected_triggers();
+  if (Status s = m.setup(); !s.ok()) {
+    for (dev::Device* d : m.used) (void)d->deactivate();
+    if (m.have_truth && m.rig.world()) m.rig.world()->set_ground_truth_callback(nullptr);
+    if (m.recorder) {
+      m.record_event("error", s.message());
+      (void)m.recorder->close();
+    }
+    state_ = SessionState::kFailed;
+    return s;
+  }
+  state_ = SessionState::kRunning;
+  m.update_progress(true);
+  Status s = m.opts.plan.protocol == Protocol::kHandHeld ? m.run_hand_held() : m.run_automated();
+  Json summary = m.finish(s);
+  if (m.opts.on_event) m.opts.on_event("finished", summary);
+  return summary;
+}
+
+}  // namespace hc::rig

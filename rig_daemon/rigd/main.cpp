@@ -1,0 +1,107 @@
+// rigd — the rig daemon. `rigd` alone runs the embedded default rig (every device simulated,
+// sessions under ./sessions/); `rigd --config RIG.yaml` a real one. It serves the control protocol
+// on a Unix socket (owner-only) until SIGINT/SIGTERM or a `shutdown` request.
+#include <signal.h>
+#include <CLI/CLI.hpp>
+
+#include <atomic>
+#include <cstdio>
+#include <iostream>
+#include <memory>
+
+#include "common/log.h"
+#include "rig_daemon/daemon/control_socket.h"
+#include "rig_daemon/daemon/daemon.h"
+#include "rig_daemon/daemon/rig_config.h"
+
+namespace {
+
+int fail(const hc::Status& s, int code) {
+  std::fprintf(stderr, "rigd: %s\n", s.to_string().c_str());
+  return code;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  CLI::App app{"rigd: the Hardcopy capture-rig daemon (control it with rigctl)"};
+  std::string config_path, replay_path, socket_path, sessions_dir;
+  bool simulated_time = false;
+  app.add_option("--config", config_path,
+                 "rig config YAML (default: the embedded, all-simulated rig)")
+      ->check(CLI::ExistingFile);
+  app.add_option("--replay", replay_path,
+                 "serve the streams of a recorded session through the same device interfaces");
+  app.add_option("--socket", socket_path, "control socket path (default: from the config)");
+  app.add_option("--sessions-dir", sessions_dir,
+                 "where sessions are written (default: from the config)");
+  app.add_flag("--simulated-time", simulated_time,
+               "run simulated devices on simulated time, as fast as the CPU allows (tests)");
+  app.set_version_flag("--version", std::string("rigd ") + HARDCOPY_VERSION);
+  CLI11_PARSE(app, argc, argv);
+  (void)hc::log::configure_from_env();
+
+  hc::Result<hc::rig::RigConfig> config = config_path.empty()
+                                              ? hc::rig::embedded_default_rig_config()
+                                              : hc::rig::load_rig_config(config_path);
+  if (!config.ok()) return fail(config.status(), 2);
+  if (!sessions_dir.empty()) config->sessions_dir = sessions_dir;
+  if (!socket_path.empty()) config->socket = socket_path;
+  if (!replay_path.empty()) {
+    return fail(hc::unsupported("--replay " + replay_path +
+                                ": this build has no replay device backends yet"),
+                2);
+  }
+
+  // Signals are taken synchronously by the main thread (sigwait), so block them before any
+  // thread starts.
+  sigset_t signals;
+  sigemptyset(&signals);
+  sigaddset(&signals, SIGINT);
+  sigaddset(&signals, SIGTERM);
+  pthread_sigmask(SIG_BLOCK, &signals, nullptr);
+
+  std::atomic<bool> shutdown{false};
+  std::shared_ptr<hc::rig::ControlServer> server_ref;  // set once serving
+  std::mutex server_mutex;
+  hc::rig::Daemon::Options options;
+  options.config = *config;
+  options.software_version = HARDCOPY_VERSION;
+  if (simulated_time) options.clock = std::make_shared<hc::devices::SimulatedClock>();
+  options.on_event = [&](std::string_view event, const hc::Json& fields) {
+    std::lock_guard lock(server_mutex);
+    if (server_ref) server_ref->broadcast(event, fields);
+  };
+  options.on_shutdown = [&] {
+    shutdown = true;
+    ::kill(::getpid(), SIGTERM);  // wakes the sigwait below
+  };
+  hc::Result<std::unique_ptr<hc::rig::Daemon>> daemon = hc::rig::Daemon::create(options);
+  if (!daemon.ok()) return fail(daemon.status(), 2);
+
+  const std::filesystem::path sock = hc::rig::default_socket_path(*config);
+  hc::Result<std::unique_ptr<hc::rig::ControlServer>> server = hc::rig::ControlServer::start(
+      sock,
+      [&](const hc::rig::Request& r, hc::Status& error) { return (*daemon)->handle(r, error); });
+  if (!server.ok()) return fail(server.status(), 1);
+  {
+    std::lock_guard lock(server_mutex);
+    server_ref = std::move(server).value();
+  }
+  std::fprintf(stderr, "rigd %s: %s rig (%s), sessions in %s, control socket %s\n",
+               HARDCOPY_VERSION, config_path.empty() ? "embedded default" : "configured",
+               config->source_name.c_str(), config->sessions_dir.c_str(), sock.c_str());
+  std::fflush(stderr);
+
+  int sig = 0;
+  sigwait(&signals, &sig);
+  std::fprintf(stderr, "rigd: %s, stopping\n", shutdown ? "shutdown requested" : strsignal(sig));
+  (void)(*daemon)->stop();
+  (*daemon)->wait_idle(30000);
+  {
+    std::lock_guard lock(server_mutex);
+    server_ref.reset();
+  }
+  daemon->reset();
+  return 0;
+}
