@@ -24,6 +24,9 @@ struct SparseCholesky::Impl {
     // Errors come back as return values; don't let CHOLMOD print to stderr.
     common.print = 0;
     common.error_handler = nullptr;
+    // LL^T also for simplicial factors: CHOLMOD's default simplicial LDL^T "succeeds" on indefinite
+    // matrices, and we must report a matrix that is not positive definite.
+    common.final_ll = 1;
   }
   ~Impl() {
     free_workspace();

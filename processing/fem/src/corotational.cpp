@@ -1,0 +1,555 @@
+#include "processing/fem/corotational.h"
+
+#include <Eigen/Geometry>
+#include <algorithm>
+#include <cmath>
+#include <numeric>
+#include <string>
+
+namespace hc::fem {
+
+const Matrix6d& g_matrix() {
+  static const Matrix6d kG = [] {
+    Matrix6d g = Matrix6d::Zero();
+    g.diagonal() << 1, 1, 1, 0.5, 0.5, 0.5;
+    return g;
+  }();
+  return kG;
+}
+
+const Matrix6d& h_matrix() {
+  static const Matrix6d kH = [] {
+    Matrix6d h = Matrix6d::Zero();
+    h.topLeftCorner<3, 3>() << -1, 1, 1, 1, -1, 1, 1, 1, -1;
+    h.bottomRightCorner<3, 3>() = -Eigen::Matrix3d::Identity();
+    return h;
+  }();
+  return kH;
+}
+
+Matrix6d elasticity_matrix(const LambdaAlpha& p) {
+  return p.lambda * g_matrix() + p.alpha * h_matrix();
+}
+
+Eigen::Matrix3d polar_rotation(const Eigen::Matrix3d& a, Eigen::Quaterniond* q,
+                               int max_iterations) {
+  // Mueller, Bender, Chentanez, Macklin 2016, "A robust method to extract the rotational part of
+  // deformations": maximises tr(R^T A) by rotating q about the torque axis; always returns a
+  // rotation (also for flat and inverted elements, where SVD-based polar decompositions need sign
+  // fixes).
+  constexpr double kAngleTolerance = 1e-13;
+  for (int it = 0; it < max_iterations; ++it) {
+    const Eigen::Matrix3d r = q->toRotationMatrix();
+    const Eigen::Vector3d omega_num =
+        r.col(0).cross(a.col(0)) + r.col(1).cross(a.col(1)) + r.col(2).cross(a.col(2));
+    const double denom =
+        std::abs(r.col(0).dot(a.col(0)) + r.col(1).dot(a.col(1)) + r.col(2).dot(a.col(2))) + 1e-9;
+    const Eigen::Vector3d omega = omega_num / denom;
+    const double w = omega.norm();
+    if (!(w >= kAngleTolerance)) break;  // also stops on NaN
+    *q = Eigen::Quaterniond(Eigen::AngleAxisd(w, omega / w)) * *q;
+    q->normalize();
+  }
+  return q->toRotationMatrix();
+}
+
+Eigen::Matrix3d polar_rotation(const Eigen::Matrix3d& f) {
+  Eigen::Quaterniond q = Eigen::Quaterniond::Identity();
+  return polar_rotation(f, &q, 100);
+}
+
+Status CorotationalOptions::validate() const {
+  if (!(min_relative_volume >= 0) || !std::isfinite(min_relative_volume)) {
+    return invalid_argument("CorotationalOptions: min_relative_volume must be >= 0");
+  }
+  if (polar_max_iterations < 1) {
+    return invalid_argument("CorotationalOptions: polar_max_iterations must be >= 1");
+  }
+  return {};
+}
+
+struct CorotationalFem::Impl {
+  TetMesh mesh;
+  CorotationalOptions options;
+  std::vector<int> fixed_nodes;
+  std::vector<int> free_index;  // per node: index among free nodes or -1
+  Eigen::Index num_free = 0;
+  std::vector<Matrix43d> grads;
+  std::vector<double> volumes;
+  std::vector<LambdaAlpha> params;
+  MatrixX3d x;
+  std::vector<Eigen::Matrix3d> rotations;
+  std::vector<Eigen::Quaterniond> quats;
+  SparseMatrix k;
+  Eigen::VectorXd rhs;
+  // Scatter map: per element 16 (a, b) node pairs x 3 columns: index into k's values of the first
+  // entry of the rows of node a in column c of node b; -1 when the pair is not stored in the upper
+  // triangle.
+  std::vector<int> scatter;
+  // Per free node and column c: value index of the node's own diagonal block (rows 0..c).
+  std::vector<int> self_start;
+  SparseCholesky cholesky;
+};
+
+CorotationalFem::CorotationalFem(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) {}
+CorotationalFem::CorotationalFem(CorotationalFem&&) noexcept = default;
+CorotationalFem& CorotationalFem::operator=(CorotationalFem&&) noexcept = default;
+CorotationalFem::~CorotationalFem() = default;
+
+Result<CorotationalFem> CorotationalFem::create(const TetMesh& mesh,
+                                                const std::vector<int>& fixed_nodes,
+                                                const CorotationalOptions& options) {
+  HC_RETURN_IF_ERROR(options.validate());
+  auto impl = std::make_unique<Impl>();
+  Impl& s = *impl;
+  s.mesh = mesh;
+  s.options = options;
+  const Eigen::Index n = mesh.num_nodes();
+  const Eigen::Index t = mesh.num_tets();
+  if (n < 4 || t < 1) {
+    return invalid_argument("FEM mesh needs at least 4 nodes and 1 tetrahedron, got " +
+                            std::to_string(n) + " nodes and " + std::to_string(t) + " tets");
+  }
+  if (!mesh.nodes.allFinite()) {
+    for (Eigen::Index i = 0; i < n; ++i) {
+      if (!mesh.nodes.row(i).allFinite()) {
+        return invalid_argument("FEM mesh: node " + std::to_string(i) +
+                                " has a non-finite coordinate");
+      }
+    }
+  }
+  std::vector<char> used(static_cast<size_t>(n), 0);
+  for (Eigen::Index e = 0; e < t; ++e) {
+    for (int a = 0; a < 4; ++a) {
+      const int v = mesh.tets(e, a);
+      if (v < 0 || v >= n) {
+        return invalid_argument("FEM mesh: tet " + std::to_string(e) + " references node " +
+                                std::to_string(v) + " (mesh has " + std::to_string(n) + " nodes)");
+      }
+      used[static_cast<size_t>(v)] = 1;
+    }
+  }
+  // Rest geometry.
+  s.grads.resize(static_cast<size_t>(t));
+  s.volumes.resize(static_cast<size_t>(t));
+  double mean_abs_volume = 0;
+  std::vector<double> signed_volume(static_cast<size_t>(t));
+  std::vector<Eigen::Matrix3d> dm(static_cast<size_t>(t));
+  for (Eigen::Index e = 0; e < t; ++e) {
+    const Eigen::Vector3d x0 = mesh.nodes.row(mesh.tets(e, 0)).transpose();
+    Eigen::Matrix3d d;
+    for (int a = 1; a < 4; ++a) d.col(a - 1) = mesh.nodes.row(mesh.tets(e, a)).transpose() - x0;
+    dm[static_cast<size_t>(e)] = d;
+    signed_volume[static_cast<size_t>(e)] = d.determinant() / 6.0;
+    mean_abs_volume += std::abs(signed_volume[static_cast<size_t>(e)]);
+  }
+  mean_abs_volume /= static_cast<double>(t);
+  for (Eigen::Index e = 0; e < t; ++e) {
+    const double v = signed_volume[static_cast<size_t>(e)];
+    if (!(v > options.min_relative_volume * mean_abs_volume) || !(v > 0)) {
+      const bool inverted = v < 0 && std::abs(v) > options.min_relative_volume * mean_abs_volume;
+      return invalid_argument("FEM mesh: tet " + std::to_string(e) + " is " +
+                              (inverted ? "inverted" : "degenerate") + " (signed volume " +
+                              std::to_string(v) + " m^3, mean " + std::to_string(mean_abs_volume) +
+                              " m^3)");
+    }
+    const Eigen::Matrix3d inv = dm[static_cast<size_t>(e)].inverse();
+    Matrix43d g;
+    g.bottomRows<3>() = inv;  // row a-1 of Dm^{-1} is grad N_a for a = 1..3
+    g.row(0) = -inv.colwise().sum();
+    s.grads[static_cast<size_t>(e)] = g;
+    s.volumes[static_cast<size_t>(e)] = v;
+  }
+  // Fixed nodes (unreferenced nodes are fixed too: they carry no stiffness).
+  std::vector<char> fixed(static_cast<size_t>(n), 0);
+  for (int f : fixed_nodes) {
+    if (f < 0 || f >= n) {
+      return invalid_argument("FEM: fixed node " + std::to_string(f) + " out of range (mesh has " +
+                              std::to_string(n) + " nodes)");
+    }
+    fixed[static_cast<size_t>(f)] = 1;
+  }
+  s.free_index.assign(static_cast<size_t>(n), -1);
+  for (Eigen::Index i = 0; i < n; ++i) {
+    if (!used[static_cast<size_t>(i)]) fixed[static_cast<size_t>(i)] = 1;
+    if (fixed[static_cast<size_t>(i)]) {
+      s.fixed_nodes.push_back(static_cast<int>(i));
+    } else {
+      s.free_index[static_cast<size_t>(i)] = static_cast<int>(s.num_free++);
+    }
+  }
+  if (s.num_free == 0) return invalid_argument("FEM: every node is fixed; nothing to solve");
+  // Pattern: for each free node j, the free nodes i <= j it shares an element with (node
+  // adjacency).
+  std::vector<std::vector<int>> upper_nbrs(static_cast<size_t>(s.num_free));
+  for (Eigen::Index e = 0; e < t; ++e) {
+    for (int a = 0; a < 4; ++a) {
+      const int fa = s.free_index[static_cast<size_t>(mesh.tets(e, a))];
+      if (fa < 0) continue;
+      for (int b = 0; b < 4; ++b) {
+        const int fb = s.free_index[static_cast<size_t>(mesh.tets(e, b))];
+        if (fb < 0 || fa > fb) continue;
+        upper_nbrs[static_cast<size_t>(fb)].push_back(fa);
+      }
+    }
+  }
+  Eigen::Index nnz = 0;
+  for (auto& v : upper_nbrs) {
+    std::sort(v.begin(), v.end());
+    v.erase(std::unique(v.begin(), v.end()), v.end());
+    nnz += 9 * static_cast<Eigen::Index>(v.size()) - 3;  // self block contributes 6, others 9
+  }
+  const Eigen::Index ndof = 3 * s.num_free;
+  if (nnz > std::numeric_limits<int>::max()) return invalid_argument("FEM: mesh too large");
+  s.k.resize(ndof, ndof);
+  s.k.resizeNonZeros(nnz);
+  int* outer = s.k.outerIndexPtr();
+  int* inner = s.k.innerIndexPtr();
+  // column_start[j] for each free node's first column, and per node the position of each neighbour.
+  s.self_start.resize(static_cast<size_t>(ndof));
+  int pos = 0;
+  for (Eigen::Index j = 0; j < s.num_free; ++j) {
+    const auto& nb = upper_nbrs[static_cast<size_t>(j)];
+    for (int c = 0; c < 3; ++c) {
+      outer[3 * j + c] = pos;
+      for (int i : nb) {
+        const int rows = (i == j) ? c + 1 : 3;
+        if (i == j) s.self_start[static_cast<size_t>(3 * j + c)] = pos;
+        for (int r = 0; r < rows; ++r) inner[pos++] = 3 * i + r;
+      }
+    }
+  }
+  outer[ndof] = pos;
+  s.k.valuePtr()[0] = 0;
+  std::fill(s.k.valuePtr(), s.k.valuePtr() + nnz, 0.0);
+  // Scatter map. Position of node i's rows in column (3j + c): column start + 9 * (rank of i among
+  // j's neighbours) works for c's offset since all neighbour blocks before the self block have 3
+  // rows.
+  s.scatter.assign(static_cast<size_t>(t) * 48, -1);
+  for (Eigen::Index e = 0; e < t; ++e) {
+    for (int a = 0; a < 4; ++a) {
+      const int fa = s.free_index[static_cast<size_t>(mesh.tets(e, a))];
+      if (fa < 0) continue;
+      for (int b = 0; b < 4; ++b) {
+        const int fb = s.free_index[static_cast<size_t>(mesh.tets(e, b))];
+        if (fb < 0 || fa > fb) continue;
+        const auto& nb = upper_nbrs[static_cast<size_t>(fb)];
+        const auto rank = std::lower_bound(nb.begin(), nb.end(), fa) - nb.begin();
+        for (int c = 0; c < 3; ++c) {
+          s.scatter[static_cast<size_t>(e) * 48 + static_cast<size_t>(a * 4 + b) * 3 +
+                    static_cast<size_t>(c)] = outer[3 * fb + c] + 3 * static_cast<int>(rank);
+        }
+      }
+    }
+  }
+  s.params.assign(static_cast<size_t>(t), LambdaAlpha{});
+  s.x = mesh.nodes;
+  s.rotations.assign(static_cast<size_t>(t), Eigen::Matrix3d::Identity());
+  s.quats.assign(static_cast<size_t>(t), Eigen::Quaterniond::Identity());
+  s.rhs = Eigen::VectorXd::Zero(ndof);
+  HC_RETURN_IF_ERROR(s.cholesky.analyze(s.k));
+  return CorotationalFem(std::move(impl));
+}
+
+const TetMesh& CorotationalFem::mesh() const { return impl_->mesh; }
+Eigen::Index CorotationalFem::num_nodes() const { return impl_->mesh.num_nodes(); }
+Eigen::Index CorotationalFem::num_elements() const { return impl_->mesh.num_tets(); }
+Eigen::Index CorotationalFem::num_free_dofs() const { return 3 * impl_->num_free; }
+bool CorotationalFem::is_fixed(Eigen::Index node) const {
+  return impl_->free_index[static_cast<size_t>(node)] < 0;
+}
+const std::vector<int>& CorotationalFem::fixed_nodes() const { return impl_->fixed_nodes; }
+int CorotationalFem::dof(Eigen::Index node, int axis) const {
+  const int f = impl_->free_index[static_cast<size_t>(node)];
+  return f < 0 ? -1 : 3 * f + axis;
+}
+std::array<int, 12> CorotationalFem::element_dofs(Eigen::Index e) const {
+  std::array<int, 12> d{};
+  for (int a = 0; a < 4; ++a) {
+    for (int c = 0; c < 3; ++c) d[static_cast<size_t>(3 * a + c)] = dof(impl_->mesh.tets(e, a), c);
+  }
+  return d;
+}
+
+double CorotationalFem::volume(Eigen::Index e) const {
+  return impl_->volumes[static_cast<size_t>(e)];
+}
+const Matrix43d& CorotationalFem::shape_gradients(Eigen::Index e) const {
+  return impl_->grads[static_cast<size_t>(e)];
+}
+
+Matrix6x12d CorotationalFem::b_matrix(Eigen::Index e) const {
+  const Matrix43d& g = shape_gradients(e);
+  Matrix6x12d b = Matrix6x12d::Zero();
+  for (int a = 0; a < 4; ++a) {
+    const int c = 3 * a;
+    b(0, c) = g(a, 0);
+    b(1, c + 1) = g(a, 1);
+    b(2, c + 2) = g(a, 2);
+    b(3, c) = g(a, 1);
+    b(3, c + 1) = g(a, 0);
+    b(4, c) = g(a, 2);
+    b(4, c + 2) = g(a, 0);
+    b(5, c + 1) = g(a, 2);
+    b(5, c + 2) = g(a, 1);
+  }
+  return b;
+}
+
+Matrix12d CorotationalFem::stiffness_g(Eigen::Index e) const {
+  const Matrix6x12d b = b_matrix(e);
+  return volume(e) * b.transpose() * g_matrix() * b;
+}
+Matrix12d CorotationalFem::stiffness_h(Eigen::Index e) const {
+  const Matrix6x12d b = b_matrix(e);
+  return volume(e) * b.transpose() * h_matrix() * b;
+}
+Matrix12d CorotationalFem::element_stiffness(Eigen::Index e) const {
+  const Matrix6x12d b = b_matrix(e);
+  return volume(e) * b.transpose() * elasticity_matrix(impl_->params[static_cast<size_t>(e)]) * b;
+}
+
+Vector12d CorotationalFem::rest_positions(Eigen::Index e) const {
+  Vector12d v;
+  for (int a = 0; a < 4; ++a) v.segment<3>(3 * a) = impl_->mesh.nodes.row(impl_->mesh.tets(e, a));
+  return v;
+}
+Vector12d CorotationalFem::current_positions(Eigen::Index e) const {
+  Vector12d v;
+  for (int a = 0; a < 4; ++a) v.segment<3>(3 * a) = impl_->x.row(impl_->mesh.tets(e, a));
+  return v;
+}
+
+Status CorotationalFem::set_params(const std::vector<LambdaAlpha>& params) {
+  if (static_cast<Eigen::Index>(params.size()) != num_elements()) {
+    return invalid_argument("FEM: " + std::to_string(params.size()) + " element parameters for " +
+                            std::to_string(num_elements()) + " elements");
+  }
+  for (size_t e = 0; e < params.size(); ++e) {
+    if (!std::isfinite(params[e].lambda) || !std::isfinite(params[e].alpha)) {
+      return invalid_argument("FEM: element " + std::to_string(e) + " has non-finite parameters");
+    }
+  }
+  impl_->params = params;
+  return {};
+}
+void CorotationalFem::set_uniform_params(const LambdaAlpha& p) {
+  std::fill(impl_->params.begin(), impl_->params.end(), p);
+}
+const std::vector<LambdaAlpha>& CorotationalFem::params() const { return impl_->params; }
+
+Status CorotationalFem::set_positions(const MatrixX3d& x) {
+  if (x.rows() != num_nodes()) {
+    return invalid_argument("FEM: " + std::to_string(x.rows()) + " positions for " +
+                            std::to_string(num_nodes()) + " nodes");
+  }
+  if (!x.allFinite()) return invalid_argument("FEM: non-finite node positions");
+  impl_->x = x;
+  return {};
+}
+const MatrixX3d& CorotationalFem::positions() const { return impl_->x; }
+MatrixX3d CorotationalFem::displacements() const { return impl_->x - impl_->mesh.nodes; }
+
+namespace {
+
+Eigen::Matrix3d deformation_gradient(const MatrixX3d& x, const MatrixX4i& tets, Eigen::Index e,
+                                     const Matrix43d& g) {
+  Eigen::Matrix3d f = Eigen::Matrix3d::Zero();
+  for (int a = 0; a < 4; ++a) f.noalias() += x.row(tets(e, a)).transpose() * g.row(a);
+  return f;
+}
+
+}  // namespace
+
+void CorotationalFem::update_rotations() {
+  Impl& s = *impl_;
+  if (!s.options.corotational) {
+    set_rotations_identity();
+    return;
+  }
+  const Eigen::Index t = num_elements();
+  for (Eigen::Index e = 0; e < t; ++e) {
+    const auto ue = static_cast<size_t>(e);
+    const Eigen::Matrix3d f = deformation_gradient(s.x, s.mesh.tets, e, s.grads[ue]);
+    s.rotations[ue] = polar_rotation(f, &s.quats[ue], s.options.polar_max_iterations);
+  }
+}
+
+const Eigen::Matrix3d& CorotationalFem::rotation(Eigen::Index e) const {
+  return impl_->rotations[static_cast<size_t>(e)];
+}
+void CorotationalFem::set_rotations_identity() {
+  std::fill(impl_->rotations.begin(), impl_->rotations.end(), Eigen::Matrix3d::Identity());
+  std::fill(impl_->quats.begin(), impl_->quats.end(), Eigen::Quaterniond::Identity());
+}
+
+Vector6d CorotationalFem::strain(Eigen::Index e) const {
+  const Impl& s = *impl_;
+  const auto ue = static_cast<size_t>(e);
+  const Eigen::Matrix3d fr =
+      s.rotations[ue].transpose() * deformation_gradient(s.x, s.mesh.tets, e, s.grads[ue]);
+  Vector6d eps;
+  eps << fr(0, 0) - 1, fr(1, 1) - 1, fr(2, 2) - 1, fr(0, 1) + fr(1, 0), fr(0, 2) + fr(2, 0),
+      fr(1, 2) + fr(2, 1);
+  return eps;
+}
+
+Eigen::Matrix<double, Eigen::Dynamic, 6> CorotationalFem::strains() const {
+  Eigen::Matrix<double, Eigen::Dynamic, 6> out(num_elements(), 6);
+  for (Eigen::Index e = 0; e < num_elements(); ++e) out.row(e) = strain(e).transpose();
+  return out;
+}
+
+void CorotationalFem::assemble() {
+  Impl& s = *impl_;
+  double* values = s.k.valuePtr();
+  std::fill(values, values + s.k.nonZeros(), 0.0);
+  s.rhs.setZero();
+  const Eigen::Index t = num_elements();
+  const auto& tets = s.mesh.tets;
+  for (Eigen::Index e = 0; e < t; ++e) {
+    const auto ue = static_cast<size_t>(e);
+    const Matrix43d& g = s.grads[ue];
+    const double v = s.volumes[ue];
+    const LambdaAlpha& p = s.params[ue];
+    const double va = v * p.alpha;                      // V * first Lame parameter
+    const double vmu = v * (0.5 * p.lambda - p.alpha);  // V * shear modulus
+    // Rotated gradients h_a = R g_a (rows). K^w_ab = V [alpha h_a h_b^T + mu h_b h_a^T + mu
+    // (g_a.g_b) I] (the isotropic B^T E B written per node pair, rotated: R K_ab R^T).
+    const Matrix43d h = g * s.rotations[ue].transpose();
+    const int* sc = &s.scatter[ue * 48];
+    int fr[4];
+    for (int a = 0; a < 4; ++a) fr[a] = s.free_index[static_cast<size_t>(tets(e, a))];
+    for (int a = 0; a < 4; ++a) {
+      if (fr[a] < 0) continue;
+      double* rhs_a = s.rhs.data() + 3 * fr[a];
+      // R K_e X_e = V (lambda + alpha) h_a (see header: B X_e = (1,1,1,0,0,0)).
+      const double vsum = v * (p.lambda + p.alpha);
+      for (int r = 0; r < 3; ++r) rhs_a[r] += vsum * h(a, r);
+      for (int b = 0; b < 4; ++b) {
+        const double mgg = vmu * g.row(a).dot(g.row(b));
+        if (fr[b] >= 0) {
+          if (fr[a] > fr[b]) continue;
+          const int* col = sc + (a * 4 + b) * 3;
+          const int rows_max = (a == b) ? 0 : 2;  // diagonal block: upper triangle only
+          for (int c = 0; c < 3; ++c) {
+            double* dst = values + col[c];
+            const int rmax = (a == b) ? c : rows_max;
+            for (int r = 0; r <= rmax; ++r) {
+              dst[r] += va * h(a, r) * h(b, c) + vmu * h(b, r) * h(a, c) + (r == c ? mgg : 0.0);
+            }
+          }
+        } else {
+          // Fixed neighbour: its known position moves to the right-hand side.
+          const Eigen::Vector3d xb = s.x.row(tets(e, b)).transpose();
+          const double hb_x = h.row(b).dot(xb.transpose());
+          const double ha_x = h.row(a).dot(xb.transpose());
+          for (int r = 0; r < 3; ++r) {
+            rhs_a[r] -= va * h(a, r) * hb_x + vmu * h(b, r) * ha_x + mgg * xb(r);
+          }
+        }
+      }
+    }
+  }
+}
+
+const SparseMatrix& CorotationalFem::stiffness() const { return impl_->k; }
+
+void CorotationalFem::add_to_node_block(Eigen::Index node, const Eigen::Matrix3d& block) {
+  Impl& s = *impl_;
+  const int f = s.free_index[static_cast<size_t>(node)];
+  if (f < 0) return;
+  double* values = s.k.valuePtr();
+  for (int c = 0; c < 3; ++c) {
+    double* dst = values + s.self_start[static_cast<size_t>(3 * f + c)];
+    for (int r = 0; r <= c; ++r) dst[r] += block(r, c);
+  }
+}
+
+const Eigen::VectorXd& CorotationalFem::rest_rhs() const { return impl_->rhs; }
+
+Status CorotationalFem::factorize() { return impl_->cholesky.factorize(impl_->k); }
+const SparseCholesky& CorotationalFem::cholesky() const { return impl_->cholesky; }
+
+Status CorotationalFem::solve(const MatrixX3d& external_forces) {
+  return solve(external_forces, Eigen::VectorXd());
+}
+
+Status CorotationalFem::solve(const MatrixX3d& external_forces, const Eigen::VectorXd& extra_rhs) {
+  Impl& s = *impl_;
+  if (external_forces.rows() != num_nodes()) {
+    return invalid_argument("FEM: " + std::to_string(external_forces.rows()) + " force rows for " +
+                            std::to_string(num_nodes()) + " nodes");
+  }
+  if (!external_forces.allFinite()) return invalid_argument("FEM: non-finite external forces");
+  const Eigen::Index ndof = num_free_dofs();
+  if (extra_rhs.size() != 0 && extra_rhs.size() != ndof) {
+    return invalid_argument("FEM: extra right-hand side has the wrong length");
+  }
+  Eigen::VectorXd b = s.rhs;
+  if (extra_rhs.size() != 0) b += extra_rhs;
+  const Eigen::Index n = num_nodes();
+  for (Eigen::Index i = 0; i < n; ++i) {
+    const int f = s.free_index[static_cast<size_t>(i)];
+    if (f >= 0) b.segment<3>(3 * f) += external_forces.row(i).transpose();
+  }
+  Eigen::VectorXd xs;
+  HC_RETURN_IF_ERROR(s.cholesky.solve(b, &xs));
+  if (!xs.allFinite()) return failed_precondition("FEM: solve produced non-finite positions");
+  for (Eigen::Index i = 0; i < n; ++i) {
+    const int f = s.free_index[static_cast<size_t>(i)];
+    if (f >= 0) s.x.row(i) = xs.segment<3>(3 * f).transpose();
+  }
+  return {};
+}
+
+Status CorotationalFem::step(const MatrixX3d& external_forces) {
+  update_rotations();
+  assemble();
+  HC_RETURN_IF_ERROR(factorize());
+  return solve(external_forces);
+}
+
+Status CorotationalFem::solve_static(const MatrixX3d& external_forces, int max_iterations,
+                                     double tolerance_m, int* iterations) {
+  int it = 0;
+  for (; it < std::max(1, max_iterations); ++it) {
+    const MatrixX3d before = impl_->x;
+    HC_RETURN_IF_ERROR(step(external_forces));
+    const double change = (impl_->x - before).cwiseAbs().maxCoeff();
+    if (change <= tolerance_m || !impl_->options.corotational) {
+      ++it;
+      if (iterations != nullptr) *iterations = it;
+      return {};
+    }
+  }
+  if (iterations != nullptr) *iterations = it;
+  return failed_precondition("FEM: co-rotational iteration did not converge in " +
+                             std::to_string(it) + " iterations");
+}
+
+MatrixX3d CorotationalFem::elastic_forces() const {
+  const Impl& s = *impl_;
+  MatrixX3d f = MatrixX3d::Zero(num_nodes(), 3);
+  const auto& tets = s.mesh.tets;
+  for (Eigen::Index e = 0; e < num_elements(); ++e) {
+    const auto ue = static_cast<size_t>(e);
+    const Matrix6x12d b = b_matrix(e);
+    const Eigen::Matrix3d& r = s.rotations[ue];
+    Vector12d u;
+    for (int a = 0; a < 4; ++a) {
+      u.segment<3>(3 * a) = r.transpose() * s.x.row(tets(e, a)).transpose() -
+                            s.mesh.nodes.row(tets(e, a)).transpose();
+    }
+    // f_e = -R V B^T E B u (B u is rotation-frame strain; exact also for translated frames as B
+    // annihilates translations).
+    const Vector6d sigma = elasticity_matrix(s.params[ue]) * (b * u);
+    const Vector12d fl = -s.volumes[ue] * b.transpose() * sigma;
+    for (int a = 0; a < 4; ++a) f.row(tets(e, a)) += (r * fl.segment<3>(3 * a)).transpose();
+  }
+  return f;
+}
+
+const CorotationalOptions& CorotationalFem::options() const { return impl_->options; }
+
+}  // namespace hc::fem

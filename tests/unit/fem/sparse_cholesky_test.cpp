@@ -1,0 +1,98 @@
+// CHOLMOD wrapper vs Eigen's dense LLT on small SPD systems; failure modes.
+#include "processing/fem/sparse_cholesky.h"
+
+#include <gtest/gtest.h>
+
+#include <Eigen/Cholesky>
+#include <vector>
+
+namespace hc::fem {
+namespace {
+
+// Upper triangle of a random sparse SPD matrix: 1-D Laplacian-like band plus random couplings and a
+// dominant diagonal (strict diagonal dominance guarantees positive definiteness).
+SparseMatrix random_spd(int n, unsigned seed, Eigen::MatrixXd* dense) {
+  std::srand(seed);
+  Eigen::MatrixXd a = Eigen::MatrixXd::Zero(n, n);
+  for (int i = 0; i < n; ++i) {
+    if (i + 1 < n) a(i, i + 1) = a(i + 1, i) = -1.0;
+    const int j = std::rand() % n;
+    if (j != i) a(i, j) = a(j, i) = 0.5 * (std::rand() % 100) / 100.0 - 0.25;
+  }
+  for (int i = 0; i < n; ++i) a(i, i) = a.row(i).cwiseAbs().sum() + 1.0;
+  *dense = a;
+  std::vector<Eigen::Triplet<double>> t;
+  for (int j = 0; j < n; ++j)
+    for (int i = 0; i <= j; ++i)
+      if (a(i, j) != 0 || i == j) t.emplace_back(i, j, a(i, j));
+  SparseMatrix s(n, n);
+  s.setFromTriplets(t.begin(), t.end());
+  s.makeCompressed();
+  return s;
+}
+
+TEST(SparseCholesky, MatchesDenseLltOneAndManyRightHandSides) {
+  Eigen::MatrixXd dense;
+  const SparseMatrix a = random_spd(60, 7, &dense);
+  SparseCholesky chol;
+  ASSERT_TRUE(chol.compute(a).ok());
+  const Eigen::VectorXd b = Eigen::VectorXd::LinSpaced(60, -1.0, 2.0);
+  Eigen::VectorXd x;
+  ASSERT_TRUE(chol.solve(b, &x).ok());
+  const Eigen::VectorXd x_ref = dense.llt().solve(b);  // Eigen dense Cholesky as the peer solver
+  EXPECT_LT((x - x_ref).norm(), 1e-12 * x_ref.norm());
+  Eigen::MatrixXd bm = Eigen::MatrixXd::Random(60, 5);
+  Eigen::MatrixXd xm;
+  ASSERT_TRUE(chol.solve(bm, &xm).ok());
+  EXPECT_LT((xm - dense.llt().solve(bm)).norm(), 1e-12 * xm.norm());
+}
+
+TEST(SparseCholesky, NumericRefactorisationReusesTheAnalysis) {
+  Eigen::MatrixXd dense;
+  SparseMatrix a = random_spd(40, 3, &dense);
+  SparseCholesky chol;
+  ASSERT_TRUE(chol.analyze(a).ok());
+  for (int k = 1; k <= 3; ++k) {
+    SparseMatrix ak = a;
+    for (int c = 0; c < ak.cols(); ++c) ak.coeffRef(c, c) += k;  // same pattern, new values
+    Eigen::MatrixXd dk = dense;
+    dk.diagonal().array() += k;
+    ASSERT_TRUE(chol.factorize(ak).ok());
+    Eigen::VectorXd x;
+    const Eigen::VectorXd b = Eigen::VectorXd::Ones(40);
+    ASSERT_TRUE(chol.solve(b, &x).ok());
+    EXPECT_LT((x - dk.llt().solve(b)).norm(), 1e-12 * x.norm());
+  }
+  EXPECT_EQ(chol.summary().analyse_calls, 1);
+  EXPECT_EQ(chol.summary().factorize_calls, 3);
+}
+
+TEST(SparseCholesky, NotPositiveDefiniteIsAnError) {
+  Eigen::MatrixXd dense;
+  SparseMatrix a = random_spd(20, 5, &dense);
+  a.coeffRef(10, 10) = -50.0;
+  SparseCholesky chol;
+  const Status st = chol.compute(a);
+  EXPECT_EQ(st.code(), StatusCode::kFailedPrecondition);
+  EXPECT_NE(st.message().find("not positive definite"), std::string::npos) << st.message();
+  EXPECT_FALSE(chol.factorized());
+  Eigen::VectorXd x;
+  EXPECT_FALSE(chol.solve(Eigen::VectorXd::Ones(20), &x).ok());
+}
+
+TEST(SparseCholesky, MisuseIsReported) {
+  Eigen::MatrixXd dense;
+  const SparseMatrix a = random_spd(10, 1, &dense);
+  SparseCholesky chol;
+  EXPECT_EQ(chol.factorize(a).code(), StatusCode::kFailedPrecondition);  // before analyze
+  ASSERT_TRUE(chol.compute(a).ok());
+  Eigen::VectorXd x;
+  EXPECT_EQ(chol.solve(Eigen::VectorXd::Ones(7), &x).code(), StatusCode::kInvalidArgument);
+  const SparseMatrix other = random_spd(12, 1, &dense);
+  EXPECT_EQ(chol.factorize(other).code(), StatusCode::kInvalidArgument);
+  SparseMatrix rect(3, 4);
+  EXPECT_EQ(chol.analyze(rect).code(), StatusCode::kInvalidArgument);
+}
+
+}  // namespace
+}  // namespace hc::fem
