@@ -10,6 +10,7 @@
 #include <random>
 #include <sstream>
 
+#include "processing/hyperelastic/fem_probe.h"
 #include "processing/meshing/tetrahedralize.h"
 #include "test_data.h"
 
@@ -359,6 +360,47 @@ TEST(BadInput, InvertedDegenerateAndInvalid) {
   EXPECT_THAT(is.message, HasSubstr("unreachable"));
   const MaterialLayer gap[] = {{0, 0.2, NeoHookeanMaterial{}}};
   EXPECT_THAT(layered_materials(*mesh, gap).status().message(), HasSubstr("no material layer"));
+}
+
+}  // namespace
+}  // namespace hc::hyperelastic
+
+namespace hc::hyperelastic {
+namespace {
+
+// processing/fem's sphere (a signed distance field with a Gauss–Newton contact Hessian) and ours
+// (exact Hessian) describe the same obstacle: same equilibrium, same force.
+TEST(FemProbe, SameIndentationAsOwnSphere) {
+  const Eigen::Vector3d size(0.02, 0.02, 0.01);
+  Result<TetMesh> mesh = meshing::structured_box(size, Eigen::Vector3i(4, 4, 2));
+  ASSERT_TRUE(mesh.ok());
+  Result<NeoHookeanModel> m = NeoHookeanModel::create(*mesh, {NeoHookeanMaterial{1e5, 0.45, 0}});
+  ASSERT_TRUE(m.ok());
+  Boundary bd;
+  bd.fixed_nodes = meshing::nodes_with_marker(*mesh, meshing::kMarkerBottom);
+  const Eigen::Vector3d centre(0.01, 0.01, 0.015);
+  ProbeOptions po;
+  po.radius_m = 0.005;
+  po.start_position_m = centre;
+  po.stiffness_n_per_m = 1e5;
+  std::unique_ptr<RigidProbe> own = make_sphere_probe(po);
+  Result<std::unique_ptr<fem::Probe>> sphere =
+      fem::make_sphere_probe(0.005, centre, Eigen::Vector3d(0, 0, -1));
+  ASSERT_TRUE(sphere.ok()) << sphere.status().to_string();
+  Result<std::unique_ptr<RigidProbe>> wrapped = make_fem_probe_contact(**sphere, 1e5);
+  ASSERT_TRUE(wrapped.ok());
+  EXPECT_FALSE(make_fem_probe_contact(**sphere, 0).ok());
+  IndentOptions io;
+  io.depth_m = 1e-3;
+  io.steps = 2;
+  Eigen::VectorXd x1 = m->rest_positions(), x2 = m->rest_positions();
+  IndentSummary s1, s2;
+  ASSERT_TRUE(indent(*m, bd, *own, io, &x1, &s1).ok());
+  ASSERT_TRUE(indent(*m, bd, **wrapped, io, &x2, &s2).ok());
+  ASSERT_TRUE(s1.usable && s2.usable) << s1.message << s2.message;
+  EXPECT_GT(s1.force_n, 0);
+  EXPECT_NEAR(s2.force_n, s1.force_n, 1e-6 * s1.force_n);
+  EXPECT_LT((x1 - x2).cwiseAbs().maxCoeff(), 1e-9);
 }
 
 }  // namespace

@@ -1,0 +1,21 @@
+// processing/fem's rigid probes (sphere, flat cylinder, any closed mesh as a signed distance field)
+// as a contact obstacle of the hyperelastic model: the same probe geometry drives both the
+// co-rotational FEM and the reference model.
+#pragma once
+
+#include <memory>
+
+#include "common/status.h"
+#include "processing/fem/probe.h"
+#include "processing/hyperelastic/neo_hookean.h"
+
+namespace hc::hyperelastic {
+
+// Wraps a copy of `probe` (its current pose is depth 0; depth moves it along probe.direction()).
+// A node at signed distance s < 0 (inside) gets the penalty energy k/2 s², k = stiffness_n_per_m,
+// i.e. the force k |s| along the probe's outward normal; the Hessian is the Gauss–Newton k n nᵀ
+// (fem's probes give no curvature). Fails on a non-positive or non-finite stiffness.
+Result<std::unique_ptr<RigidProbe>> make_fem_probe_contact(const fem::Probe& probe,
+                                                           double stiffness_n_per_m);
+
+}  // namespace hc::hyperelastic
