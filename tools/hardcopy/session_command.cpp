@@ -65,10 +65,15 @@ int run_info(const GlobalOptions& global, const InfoArgs& args) {
     fmt::print("\n");
   }
   if (!info->device_stats.empty()) {
-    fmt::print("  devices     received / lost / late\n");
+    fmt::print("  devices     {:<20} {:>10} {:>8} {:>8} {:>10}\n", "", "received", "lost", "late",
+               "incomplete");
     for (const auto& d : info->device_stats)
-      fmt::print("    {:<20} {:>10} {:>8} {:>8}\n", d.device, d.received, d.lost, d.late);
+      fmt::print("              {:<20} {:>10} {:>8} {:>8} {:>10}\n", d.device, d.received, d.lost,
+                 d.late, d.incomplete);
   }
+  if (!info->session_state.empty())
+    fmt::print("  session     {}{}\n", info->session_state,
+               info->session_reason.empty() ? "" : " (" + info->session_reason + ")");
   return kExitYes;
 }
 

@@ -780,8 +780,11 @@ Json SessionInfo::to_json() const {
   }
   Json devs = Json::array();
   for (const auto& d : device_stats)
-    devs.push_back(
-        Json{{"device", d.device}, {"received", d.received}, {"lost", d.lost}, {"late", d.late}});
+    devs.push_back(Json{{"device", d.device},
+                        {"received", d.received},
+                        {"lost", d.lost},
+                        {"late", d.late},
+                        {"incomplete", d.incomplete}});
   return Json{{"path", path},
               {"file_size", file_size},
               {"profile", header.profile},
@@ -798,7 +801,9 @@ Json SessionInfo::to_json() const {
               {"channels", chans},
               {"metadata", metadata_names},
               {"attachments", attachment_names},
-              {"device_stats", devs}};
+              {"device_stats", devs},
+              {"session_state", session_state},
+              {"session_reason", session_reason}};
 }
 
 Result<SessionInfo> session_info(const std::filesystem::path& path) {
@@ -877,8 +882,15 @@ Result<SessionInfo> session_info(const std::filesystem::path& path) {
   // Device statistics: the last "device_stats" Metadata record.
   HC_ASSIGN_OR_RETURN(const auto metadata, reader.read_metadata());
   const Metadata* stats = nullptr;
-  for (const auto& md : metadata)
+  for (const auto& md : metadata) {
     if (md.name == kMetadataDeviceStats) stats = &md;
+    if (md.name == kMetadataSessionEnd) {
+      auto st = md.metadata.find("state");
+      auto re = md.metadata.find("reason");
+      info.session_state = st == md.metadata.end() ? "" : st->second;
+      info.session_reason = re == md.metadata.end() ? "" : re->second;
+    }
+  }
   if (stats != nullptr) {
     std::map<std::string, DeviceStats> devs;
     for (const auto& [key, value] : stats->metadata) {
@@ -900,6 +912,8 @@ Result<SessionInfo> session_info(const std::filesystem::path& path) {
         d.lost = v;
       else if (field == "late")
         d.late = v;
+      else if (field == "incomplete")
+        d.incomplete = v;
     }
     for (auto& [name, d] : devs) info.device_stats.push_back(d);
   }

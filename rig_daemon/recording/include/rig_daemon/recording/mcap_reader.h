@@ -131,11 +131,11 @@ struct LinearRecord {
 };
 
 struct LinearScanResult {
-  std::uint64_t end_offset = 0;  // offset just past the last complete record read
-  bool reached_footer = false;   // a Footer and closing magic were found
-  bool truncated = false;        // the file ended inside a record (or before the Footer)
+  std::uint64_t end_offset = 0;       // offset just past the last complete record read
+  bool reached_footer = false;        // a Footer and closing magic were found
+  bool truncated = false;             // the file ended inside a record (or before the Footer)
   std::uint8_t truncated_opcode = 0;  // opcode of the record cut off (0: none / only a prefix)
-  std::string stop_reason;       // why the scan stopped early, with the offset ("" when complete)
+  std::string stop_reason;  // why the scan stopped early, with the offset ("" when complete)
 };
 
 // Reads the file from the start (after the magic) record by record, calling `on_record` for each

@@ -82,6 +82,7 @@ struct DeviceStats {
   std::uint64_t received = 0;
   std::uint64_t lost = 0;
   std::uint64_t late = 0;
+  std::uint64_t incomplete = 0;  // e.g. frames with missing packets
 };
 
 struct SessionInfo {
@@ -101,6 +102,9 @@ struct SessionInfo {
   std::vector<std::string> metadata_names;
   std::vector<std::string> attachment_names;
   std::vector<DeviceStats> device_stats;  // from the session's device-stats metadata (if any)
+  // From the last "session" Metadata record rigd writes at the end (empty when absent).
+  std::string session_state;  // e.g. "completed", "aborted"
+  std::string session_reason;
   Json to_json() const;
 };
 

@@ -31,6 +31,8 @@ inline constexpr std::string_view kMetadataSoftware = "software";  // keys "name
 // last) with keys "<device>.received", "<device>.lost", "<device>.late" (decimal counts), e.g.
 // {"ft0.received": "70000", "ft0.lost": "3", "ft0.late": "0"}.
 inline constexpr std::string_view kMetadataDeviceStats = "device_stats";
+// rigd's end-of-session record: keys "state", "reason", "json" (last one wins).
+inline constexpr std::string_view kMetadataSessionEnd = "session";
 
 // ---- JSON time series ----
 // A JSON Schema (draft 2020-12 subset Foxglove understands) for a flat object whose fields are
