@@ -4,11 +4,16 @@
 
 #include <gtest/gtest.h>
 
+#include <array>
 #include <chrono>
 #include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <nlohmann/json.hpp>
 #include <thread>
 
 #include "rig_daemon/backends/modbus_arm_client.h"
+#include "test_data.h"
 
 namespace hc::rig::sim {
 namespace {
@@ -206,6 +211,40 @@ TEST(ModbusArmClient, RtuAndBadOptionsFailClearly) {
   auto tcp = ModbusArmClient::create(o);
   ASSERT_TRUE(tcp.ok());
   EXPECT_EQ((*tcp)->connect().code(), StatusCode::kUnavailable);
+}
+
+// A third-party peer: npm's jsmodbus client drives the simulator through the documented register
+// map (home, poll, stop). Skipped when node or jsmodbus is not installed under tests/interop.
+TEST(ModbusArmServer, JsmodbusPeerHomesAndStopsTheArm) {
+  const auto interop = hc::testing::source_dir() / "tests" / "interop";
+  if (!std::filesystem::exists(interop / "node_modules" / "jsmodbus"))
+    GTEST_SKIP() << "npm jsmodbus is not installed in tests/interop (npm install jsmodbus@4)";
+  if (std::system("node --version > /dev/null 2>&1") != 0) GTEST_SKIP() << "node is not installed";
+  ModbusArmServerOptions so;
+  so.home_speed_m_s = 1.0;
+  auto server = ModbusArmServer::start(so);
+  ASSERT_TRUE(server.ok());
+  const std::string cmd = "node " + (interop / "modbus_arm_jsmodbus.cjs").string() + " " +
+                          std::to_string((*server)->port()) + " 2>&1";
+  FILE* p = ::popen(cmd.c_str(), "r");
+  ASSERT_NE(p, nullptr);
+  std::string text;
+  std::array<char, 4096> buf{};
+  std::size_t n;
+  while ((n = std::fread(buf.data(), 1, buf.size(), p)) > 0) text.append(buf.data(), n);
+  const int rc = ::pclose(p);
+  ASSERT_EQ(rc, 0) << text;
+  const auto j = nlohmann::json::parse(text);
+  EXPECT_EQ(j["map_version"], 0x0100);
+  EXPECT_EQ(j["motion_before"], 0);  // idle
+  EXPECT_EQ(j["homed_before"], false);
+  EXPECT_EQ(j["motion_after"], 3);  // holding at home
+  EXPECT_EQ(j["homed_after"], true);
+  EXPECT_EQ(j["ack_seq"], j["sent_seq"]);
+  EXPECT_EQ(j["x_um"], 0);
+  EXPECT_EQ(j["z_um"], 250000);          // home pose z = 0.25 m
+  EXPECT_EQ(j["motion_after_stop"], 4);  // stopped
+  EXPECT_EQ((*server)->stats().stops, 1u);
 }
 
 }  // namespace
