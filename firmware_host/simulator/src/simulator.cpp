@@ -29,7 +29,7 @@ class VirtualHal final : public Hal {
     v = std::clamp(v, 0.0, options_.adc_reference_v);
     const double full_scale = std::ldexp(1.0, options_.adc_bits) - 1.0;
     adc_value_ = static_cast<std::uint16_t>(std::lround(v / options_.adc_reference_v * full_scale));
-    adc_done_ = now_ + options_.adc_conversion_us;
+    adc_done_ = adc_stuck_ ? kNever : now_ + options_.adc_conversion_us;
     conversions_.push_back({now_, channel, adc_value_});
   }
   std::uint16_t adc_read() override { return adc_value_; }
@@ -74,6 +74,7 @@ class VirtualHal final : public Hal {
   std::deque<std::uint8_t> out_;  // host -> device
   std::uint64_t in_sent_ = 0;
   bool stalled_ = false;
+  bool adc_stuck_ = false;
   std::map<std::uint64_t, std::uint8_t> corruptions_;
   std::set<std::uint64_t> drops_;
 
@@ -162,6 +163,8 @@ void Simulator::drop_in_byte(std::uint64_t offset) { hal_->drops_.insert(offset)
 std::uint64_t Simulator::in_bytes_sent() const { return hal_->in_sent_; }
 
 void Simulator::set_usb_stalled(bool stalled) { hal_->stalled_ = stalled; }
+
+void Simulator::set_adc_stuck(bool stuck) { hal_->adc_stuck_ = stuck; }
 
 const std::vector<GpioEdge>& Simulator::gpio_edges() const { return hal_->edges_; }
 

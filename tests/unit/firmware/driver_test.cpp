@@ -509,3 +509,38 @@ TEST(FirmwareDriver, HostTimeMappingTracksASlowCrystal) { check_mapping_under_dr
 
 }  // namespace
 }  // namespace hc::fw
+
+namespace hc::fw {
+namespace {
+
+TEST(FirmwareDriver, StuckAdcStopsSamplesAndIsReported) {
+  auto dev = open_sim();
+  ASSERT_TRUE(dev);
+  TriggerConfig cfg;
+  cfg.period_us = 1'000;
+  cfg.pulse_width_us = 100;
+  cfg.count = 100;
+  ASSERT_TRUE(dev->configure_trigger(cfg).ok());
+  ASSERT_TRUE(dev->start().ok());
+  Collected c = run_for(*dev, 20ms);
+  const std::size_t samples_before = c.samples.size();
+  EXPECT_GE(samples_before, 15u);
+  dev->simulator()->set_adc_stuck(true);
+  const Collected stuck = run_for(*dev, 20ms);
+  // At most the conversion already under way completes; then edges continue without samples.
+  EXPECT_LE(stuck.samples.size(), 1u);
+  EXPECT_GE(stuck.edges.size(), 19u);
+  std::uint32_t abandoned = 0;
+  for (const DeviceErrorEvent& e : stuck.errors) {
+    EXPECT_EQ(e.report.code, ErrorCode::kAdcTimeout) << e.message();
+    abandoned += e.report.detail;
+  }
+  // Every edge after the first stuck conversion finds the previous one still pending.
+  EXPECT_GE(abandoned, stuck.edges.size() - 2);
+  dev->simulator()->set_adc_stuck(false);
+  const Collected recovered = run_for(*dev, 20ms);
+  EXPECT_GE(recovered.samples.size(), 19u);  // conversions resume at the next edge
+}
+
+}  // namespace
+}  // namespace hc::fw

@@ -69,6 +69,8 @@ class Simulator {
   std::uint64_t in_bytes_sent() const;  // device->host bytes produced so far
   // Stalls the device->host link (the core's USB writes return 0) until unstalled.
   void set_usb_stalled(bool stalled);
+  // A stuck ADC: conversions start but never complete (the core reports ErrorCode::kAdcTimeout).
+  void set_adc_stuck(bool stuck);
 
   // Every GPIO transition so far (all lines, in time order).
   const std::vector<GpioEdge>& gpio_edges() const;
