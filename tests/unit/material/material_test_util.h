@@ -4,13 +4,28 @@
 
 #include <Eigen/Core>
 #include <array>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
 #include <vector>
 
 #include "common/tet_mesh.h"
 #include "processing/fem/corotational.h"
+#include "processing/fem/incremental.h"
+#include "processing/fem/material_model.h"
 #include "processing/material/samples.h"
+#include "processing/material/material.h"
+#include "processing/material/synth.h"
 
 namespace hc::material::testing {
+
+// Fixtures are shared with the benchmark (no gtest there): a broken fixture aborts loudly.
+inline void fixture_check(bool ok, const char* what) {
+  if (!ok) {
+    std::fprintf(stderr, "material test fixture failed: %s\n", what);
+    std::abort();
+  }
+}
 
 // nx × ny × nz cubes over [0,sx]×[0,sy]×[0,sz], 6 tets per cube (Freudenthal/Kuhn split along the
 // main diagonal, conforming), positively oriented.
@@ -72,15 +87,59 @@ inline Example simulate_example(const TetMesh& mesh, const std::vector<fem::Lamb
   ex.fixed_nodes = bottom_nodes(mesh);
   for (int n : loaded) ex.forces.push_back({n, force / static_cast<double>(loaded.size())});
   auto fem = fem::CorotationalFem::create(mesh, ex.fixed_nodes);
-  EXPECT_TRUE(fem.ok());
-  EXPECT_TRUE(fem->set_params(params).ok());
+  fixture_check(fem.ok() && fem->set_params(params).ok(), "FEM setup");
   MatrixX3d f = MatrixX3d::Zero(mesh.num_nodes(), 3);
   for (const NodalForce& nf : ex.forces) f.row(nf.node) = nf.force_n.transpose();
-  EXPECT_TRUE(fem->solve_static(f, 200, 1e-14).ok());
+  fixture_check(fem->solve_static(f, 200, 1e-14).ok(), "static solve");
   ex.positions_m = fem->positions();
   ex.visible.assign(static_cast<std::size_t>(mesh.num_nodes()), 1);
   ex.probe.shape = "none";
   return ex;
 }
+
+// Stiffening reference: lambda, alpha grow with compression (eps_zz < 0) of each element.
+struct StiffeningReference {
+  TetMesh mesh;
+  explicit StiffeningReference(TetMesh m = box_mesh(4, 4, 2, 0.04, 0.04, 0.02))
+      : mesh(std::move(m)) {}
+  fem::LambdaAlpha p0 = fem::lambda_alpha_from_youngs_poisson(60e3, 0.3);
+  fem::LinearStrainMaterial material{p0, (fem::Vector6d() << 0, 0, -20 * p0.lambda, 0, 0, 0).finished(),
+                                     (fem::Vector6d() << 0, 0, -20 * p0.alpha, 0, 0, 0).finished()};
+
+  // The "probe" is a pressure patch: the force spread equally over the top nodes within the probe
+  // radius of its axis (keeps this test independent of contact convergence), simulated by
+  // incremental loading with the stiffening material.
+  ReferenceSimulator simulator() const {
+    return [this](const ProbePose& pose, double force_n) -> Result<ReferenceIndentation> {
+      HC_ASSIGN_OR_RETURN(fem::CorotationalFem f,
+                          fem::CorotationalFem::create(mesh, bottom_nodes(mesh)));
+      const std::vector<int> loaded =
+          top_nodes_near(mesh, pose.position_m.x(), pose.position_m.y(), pose.radius_m);
+      if (loaded.empty()) return invalid_argument("probe misses the top nodes");
+      MatrixX3d forces = MatrixX3d::Zero(mesh.num_nodes(), 3);
+      for (int n : loaded) forces.row(n) = force_n / loaded.size() * pose.direction.transpose();
+      fem::IncrementalOptions io;
+      io.steps = 6;
+      io.update_within_step = true;
+      fem::IncrementalSummary is;
+      HC_RETURN_IF_ERROR(fem::run_incremental_forces(&f, material, forces, io, &is));
+      ReferenceIndentation out;
+      out.positions_m = f.positions();
+      out.contact_forces_n = forces;
+      return out;
+    };
+  }
+  SynthOptions synth_options(int examples, double noise) const {
+    SynthOptions o;
+    o.examples = examples;
+    o.noise = noise;
+    o.seed = 11;
+    o.probe.shape = "sphere";
+    o.probe.radius_m = 0.011;
+    o.max_force_n = 4.0;
+    o.fixed_nodes = bottom_nodes(mesh);
+    return o;
+  }
+};
 
 }  // namespace hc::material::testing

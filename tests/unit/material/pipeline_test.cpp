@@ -15,49 +15,7 @@ namespace {
 
 using testing::bottom_nodes;
 using testing::box_mesh;
-
-// Stiffening reference: lambda, alpha grow with compression (eps_zz < 0) of each element.
-struct StiffeningReference {
-  TetMesh mesh = box_mesh(4, 4, 2, 0.04, 0.04, 0.02);
-  fem::LambdaAlpha p0 = fem::lambda_alpha_from_youngs_poisson(60e3, 0.3);
-  fem::LinearStrainMaterial material{p0, (Vector6d() << 0, 0, -20 * p0.lambda, 0, 0, 0).finished(),
-                                     (Vector6d() << 0, 0, -20 * p0.alpha, 0, 0, 0).finished()};
-
-  // The "probe" is a pressure patch: the force spread equally over the top nodes within the probe
-  // radius of its axis (keeps this test independent of contact convergence), simulated by
-  // incremental loading with the stiffening material.
-  ReferenceSimulator simulator() const {
-    return [this](const ProbePose& pose, double force_n) -> Result<ReferenceIndentation> {
-      HC_ASSIGN_OR_RETURN(fem::CorotationalFem f,
-                          fem::CorotationalFem::create(mesh, bottom_nodes(mesh)));
-      const std::vector<int> loaded =
-          testing::top_nodes_near(mesh, pose.position_m.x(), pose.position_m.y(), pose.radius_m);
-      if (loaded.empty()) return invalid_argument("probe misses the top nodes");
-      MatrixX3d forces = MatrixX3d::Zero(mesh.num_nodes(), 3);
-      for (int n : loaded) forces.row(n) = force_n / loaded.size() * pose.direction.transpose();
-      fem::IncrementalOptions io;
-      io.steps = 6;
-      io.update_within_step = true;
-      fem::IncrementalSummary is;
-      HC_RETURN_IF_ERROR(fem::run_incremental_forces(&f, material, forces, io, &is));
-      ReferenceIndentation out;
-      out.positions_m = f.positions();
-      out.contact_forces_n = forces;
-      return out;
-    };
-  }
-  SynthOptions synth_options(int examples, double noise) const {
-    SynthOptions o;
-    o.examples = examples;
-    o.noise = noise;
-    o.seed = 11;
-    o.probe.shape = "sphere";
-    o.probe.radius_m = 0.011;
-    o.max_force_n = 4.0;
-    o.fixed_nodes = bottom_nodes(mesh);
-    return o;
-  }
-};
+using testing::StiffeningReference;
 
 TEST(Synth, SameSeedGivesSameExamplesAndNoiseHasTheRequestedSize) {
   StiffeningReference ref;
