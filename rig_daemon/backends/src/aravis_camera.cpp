@@ -285,7 +285,11 @@ class AravisCamera final : public devices::Camera {
     Frame f;
     f.format = info_.format;
     // A buffer whose leader packet was lost has no geometry: use the configured region.
-    const gint bw = arv_buffer_get_image_width(buffer), bh = arv_buffer_get_image_height(buffer);
+    // Only a complete buffer has reliable image parts (Aravis asserts on the others).
+    const bool has_image = status == ARV_BUFFER_STATUS_SUCCESS &&
+                           arv_buffer_get_payload_type(buffer) == ARV_BUFFER_PAYLOAD_TYPE_IMAGE;
+    const gint bw = has_image ? arv_buffer_get_image_width(buffer) : 0;
+    const gint bh = has_image ? arv_buffer_get_image_height(buffer) : 0;
     f.width = bw > 0 ? static_cast<std::uint32_t>(bw) : info_.width;
     f.height = bh > 0 ? static_cast<std::uint32_t>(bh) : info_.height;
     f.stride_bytes = f.width * static_cast<std::uint32_t>(devices::bytes_per_pixel(f.format));

@@ -70,6 +70,10 @@ Result<std::unique_ptr<ModbusArmServer>> ModbusArmServer::start(ModbusArmServerO
     HC_RETURN_IF_ERROR(s->listen_locked());
     s->publish_locked();
   }
+  {
+    std::lock_guard lock(s->mutex_);
+    s->thread_running_ = true;
+  }
   s->thread_ = std::thread([p = s.get()] { p->run(); });
   return s;
 }
@@ -115,8 +119,7 @@ Status ModbusArmServer::listen_locked() {
   return {};
 }
 
-void ModbusArmServer::disappear() {
-  std::lock_guard lock(mutex_);
+void ModbusArmServer::close_all_locked() {
   if (listen_fd_ >= 0) ::close(listen_fd_);
   listen_fd_ = -1;
   for (int fd : clients_) {
@@ -129,7 +132,17 @@ void ModbusArmServer::disappear() {
     motion_ = arm::Motion::kStopped;  // the controller's link watchdog stops the axes
     target_ = pose_;
   }
+}
+
+void ModbusArmServer::disappear() {
+  std::unique_lock lock(mutex_);
+  if (!thread_running_) {
+    close_all_locked();
+    return;
+  }
+  offline_request_ = true;
   if (wake_fd_[1] >= 0) (void)!::write(wake_fd_[1], "x", 1);
+  offline_cv_.wait(lock, [&] { return !offline_request_; });
 }
 
 Status ModbusArmServer::reappear() {
@@ -295,6 +308,12 @@ void ModbusArmServer::run() {
     const int rc = ::select(max_fd + 1, &readable, nullptr, nullptr, &tv);
     if (quit_) break;
     std::lock_guard lock(mutex_);
+    if (offline_request_) {
+      close_all_locked();
+      offline_request_ = false;
+      offline_cv_.notify_all();
+      continue;
+    }
     if (rc > 0 && FD_ISSET(wake_fd_[0], &readable)) {
       char drain[64];
       while (::read(wake_fd_[0], drain, sizeof drain) > 0) {
@@ -349,6 +368,13 @@ void ModbusArmServer::run() {
       last_ns = now;
       publish_locked();
     }
+  }
+  std::lock_guard lock(mutex_);
+  thread_running_ = false;
+  if (offline_request_) {
+    close_all_locked();
+    offline_request_ = false;
+    offline_cv_.notify_all();
   }
 }
 

@@ -172,7 +172,8 @@ TEST(ModbusArmServer, ClientReconnectsWhenTheControllerComesBack) {
   // Still gone: the reconnect attempt fails fast with a clear message.
   auto again = rig.client->read_status();
   ASSERT_FALSE(again.ok());
-  EXPECT_NE(again.status().message().find("connect"), std::string::npos);
+  EXPECT_NE(again.status().message().find("connect"), std::string::npos)
+      << gone.status().to_string() << " / " << again.status().to_string();
   ASSERT_TRUE(rig.server->reappear().ok());
   auto back = rig.client->read_status();
   ASSERT_TRUE(back.ok()) << back.status().to_string();

@@ -7,6 +7,7 @@
 #pragma once
 
 #include <atomic>
+#include <condition_variable>
 #include <cstdint>
 #include <memory>
 #include <mutex>
@@ -75,6 +76,7 @@ class ModbusArmServer {
   void step(double dt_s);
   void execute(const arm::CommandBlock& command);
   void publish_locked();  // state -> input registers
+  void close_all_locked();
 
   ModbusArmServerOptions options_;
   std::uint16_t port_ = 0;
@@ -87,6 +89,11 @@ class ModbusArmServer {
   void* mapping_ = nullptr;   // modbus_mapping_t*
   int listen_fd_ = -1;
   std::vector<int> clients_;
+  // disappear() asks the server thread to close the sockets: closing a socket another thread is
+  // blocked in select() on keeps it listening until select() returns.
+  bool offline_request_ = false;
+  bool thread_running_ = false;
+  std::condition_variable offline_cv_;
   bool online_ = false;
   ArmPoseSi pose_;
   ArmPoseSi target_;
