@@ -13,7 +13,8 @@ namespace {
 
 using Json = nlohmann::json;
 
-std::string dump(const Json& j) { return j.dump(); }
+// Invalid UTF-8 in a string (a device's fault text) is replaced rather than thrown on.
+std::string dump(const Json& j) { return j.dump(-1, ' ', false, Json::error_handler_t::replace); }
 
 // Strict field readers: each records the first problem and leaves the value untouched.
 class Reader {

@@ -7,8 +7,11 @@
 #include <string>
 #include <vector>
 
+#include "replay_support.h"
 #include "rig_daemon/devices/codec.h"
+#include "rig_daemon/devices/replay.h"
 #include "sim_support.h"
+#include "test_data.h"
 
 namespace hc::devices {
 namespace {
@@ -26,7 +29,20 @@ struct BackendCase {
   // Backends on the firmware driver run on the board's own (virtual) clock, not the world's, and
   // world faults do not reach them (their link faults are tested in firmware_backend_test.cpp).
   bool on_world_clock = true;
+  // Faults injected into the simulated world reach the device.
+  bool world_faults = true;
 };
+
+// One recorded session (no faults) that every replay case serves.
+const std::filesystem::path& session_path() {
+  static hc::testing::ScratchDir dir;
+  static const std::filesystem::path path = [] {
+    const auto p = dir.path() / "conformance.mcap";
+    (void)testing::record_session(p, /*dropouts=*/false);
+    return p;
+  }();
+  return path;
+}
 
 std::ostream& operator<<(std::ostream& os, const BackendCase& c) { return os << c.label; }
 
@@ -97,6 +113,12 @@ Result<std::vector<Item>> read_items(Device& device, Duration timeout) {
 class Conformance : public ::testing::TestWithParam<BackendCase> {
  protected:
   std::unique_ptr<Device> make(SimRig& rig, const std::string& name = "dev") {
+    if (GetParam().backend == "replay") {
+      // A fresh session object per device: pacing anchors at its first activation.
+      Result<std::shared_ptr<ReplaySession>> s = ReplaySession::open(session_path());
+      EXPECT_TRUE(s.ok());
+      rig.replay = s.ok() ? *s : nullptr;
+    }
     Result<std::unique_ptr<Device>> made =
         rig.registry.create(GetParam().kind, rig.context(name, GetParam().backend));
     EXPECT_TRUE(made.ok()) << made.status().to_string();
@@ -108,7 +130,7 @@ class Conformance : public ::testing::TestWithParam<BackendCase> {
     EXPECT_TRUE(configure_from_yaml(*d, GetParam().yaml).ok());
     EXPECT_TRUE(d->activate().ok());
     if (GetParam().needs_trigger) start_train(rig, *d);
-    if (d->kind() == DeviceKind::kArm) {
+    if (d->kind() == DeviceKind::kArm && GetParam().backend != "replay") {
       ArmCommand home;
       home.type = ArmCommand::Type::kHome;
       EXPECT_TRUE(static_cast<Arm&>(*d).write(home).ok());
@@ -197,7 +219,8 @@ TEST_P(Conformance, DeliversItemsWithMonotonicTimestampsAndCountsThem) {
   ASSERT_GE(items.size(), 3u);
   for (std::size_t i = 1; i < items.size(); ++i) {
     EXPECT_GE(items[i].host_ns, items[i - 1].host_ns) << i;
-    if (GetParam().items_per_counter == 1)
+    // (Replayed arm polls repeat the latest recorded state until a newer one is due.)
+    if (GetParam().items_per_counter == 1 && GetParam().kind != DeviceKind::kArm)
       EXPECT_GT(items[i].counter, items[i - 1].counter) << i;
     else
       EXPECT_GE(items[i].counter, items[i - 1].counter) << i;
@@ -226,13 +249,14 @@ TEST_P(Conformance, SameSeedSameItemsOtherSeedOtherNoise) {
   bool differ = runs[0].size() != runs[2].size();
   for (std::size_t i = 0; !differ && i < runs[0].size(); ++i)
     differ = runs[0][i].repr != runs[2][i].repr;
-  if (GetParam().kind != DeviceKind::kTrigger && GetParam().kind != DeviceKind::kArm) {
+  if (GetParam().kind != DeviceKind::kTrigger && GetParam().kind != DeviceKind::kArm &&
+      GetParam().backend == "sim") {
     EXPECT_TRUE(differ);
   }
 }
 
 TEST_P(Conformance, DisconnectEntersErrorStateUntilReset) {
-  if (!GetParam().on_world_clock) GTEST_SKIP() << "link faults: firmware_backend_test.cpp";
+  if (!GetParam().world_faults) GTEST_SKIP() << "world faults do not reach this backend";
   SimRig rig;
   auto d = make_active(rig);
   ASSERT_TRUE(d);
@@ -262,7 +286,7 @@ TEST_P(Conformance, DisconnectEntersErrorStateUntilReset) {
 
 TEST_P(Conformance, DropoutsAndStallsAreCountedAsLost) {
   if (!GetParam().periodic) GTEST_SKIP() << "no fixed item rate";
-  if (!GetParam().on_world_clock) GTEST_SKIP() << "link faults: firmware_backend_test.cpp";
+  if (!GetParam().world_faults) GTEST_SKIP() << "world faults do not reach this backend";
   SimRig rig;
   auto d = make_active(rig);
   ASSERT_TRUE(d);
@@ -319,9 +343,16 @@ const BackendCase kCases[] = {
     {"sim_force_torque", DeviceKind::kForceTorque, "sim", "{rate_hz: 7000}", false, true},
     {"sim_arm", DeviceKind::kArm, "sim", "{}", false, false},
     {"firmware_trigger", DeviceKind::kTrigger, "firmware", "{device: sim, lines: [0, 1]}", true,
-     true, 2, false},
+     true, 2, false, false},
     {"firmware_fsr", DeviceKind::kFsr, "firmware", "{device: sim, channel: 0, adc_noise_v: 0.01}",
-     true, true, 1, false},
+     true, true, 1, false, false},
+    {"replay_camera", DeviceKind::kCamera, "replay", "{source: cam0}", false, true, 1, true, false},
+    {"replay_trigger", DeviceKind::kTrigger, "replay", "{source: trig}", false, true, 1, true,
+     false},
+    {"replay_fsr", DeviceKind::kFsr, "replay", "{source: fsr}", false, true, 1, true, false},
+    {"replay_force_torque", DeviceKind::kForceTorque, "replay", "{source: ft}", false, true, 1,
+     true, false},
+    {"replay_arm", DeviceKind::kArm, "replay", "{source: arm}", false, false, 1, true, false},
 };
 
 INSTANTIATE_TEST_SUITE_P(SimBackends, Conformance, ::testing::ValuesIn(kCases),

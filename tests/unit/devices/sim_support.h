@@ -8,6 +8,7 @@
 #include <string>
 
 #include "rig_daemon/devices/registry.h"
+#include "rig_daemon/devices/replay.h"
 #include "rig_daemon/devices/sim_world.h"
 
 namespace hc::devices::testing {
@@ -19,6 +20,7 @@ struct SimRig {
     world = std::make_shared<sim::World>(options, clock);
     EXPECT_TRUE(register_sim_backends(registry).ok());
     EXPECT_TRUE(register_firmware_backends(registry).ok());
+    EXPECT_TRUE(register_replay_backends(registry).ok());
   }
   DeviceContext context(const std::string& name, const std::string& backend = "sim") const {
     DeviceContext ctx;
@@ -26,6 +28,7 @@ struct SimRig {
     ctx.backend = backend;
     ctx.clock = clock;
     ctx.world = world;
+    ctx.replay = replay;
     return ctx;
   }
   // Backend "sim" unless the YAML names another with `backend: NAME` (read from the text).
@@ -43,6 +46,7 @@ struct SimRig {
   }
 
   std::shared_ptr<SimulatedClock> clock;
+  std::shared_ptr<ReplaySession> replay;  // for "replay" backends
   std::shared_ptr<sim::World> world;
   BackendRegistry registry;
 };
