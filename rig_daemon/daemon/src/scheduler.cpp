@@ -735,7 +735,24 @@ Status Session::Impl::run_automated() {
       HC_RETURN_IF_ERROR(pause_point());
       HC_RETURN_IF_ERROR(move_to(start, kApproachSpeedMps));
       double depth = 0.0;
-      double prev_depth = 0.0, prev_force = current_force();
+      // Approach: advance in step_m increments until the probe touches the specimen.
+      {
+        std::lock_guard lock(progress_mutex);
+        step_text = "location " + std::to_string(li + 1) + ": approaching";
+      }
+      while (current_force() < kContactForceN) {
+        if (depth + p.step_m > p.max_depth_m) {
+          record_event("max_depth",
+                       "location " + std::to_string(li) + ": no contact within max_depth_m");
+          break;
+        }
+        depth += p.step_m;
+        HC_RETURN_IF_ERROR(move_to(at_depth(depth), kPressSpeedMps));
+        const std::int64_t t_moved = clock().now_ns();
+        HC_RETURN_IF_ERROR(wait_for([&] { return last_ft_ns > t_moved + 1'000'000; },
+                                    safety->limits().stall_timeout_ns, "F/T after a move"));
+      }
+      double prev_depth = depth, prev_force = current_force();
       double stiffness = 0.0;  // N/m, from the last move in contact
       for (int k = 1; k <= p.steps; ++k) {
         HC_RETURN_IF_ERROR(pause_point());

@@ -20,11 +20,11 @@ TEST(Plan, ExampleAutomatedPlanReads) {
   ASSERT_TRUE(plan.ok()) << plan.status().to_string();
   EXPECT_EQ(plan->protocol, Protocol::kAutomated);
   EXPECT_EQ(plan->name, "silicone_block");
-  EXPECT_EQ(plan->automated.locations.size(), 3u);
+  EXPECT_EQ(plan->automated.locations.size(), 2u);
   EXPECT_EQ(plan->automated.steps, 30);
   EXPECT_EQ(plan->automated.cameras.size(), 7u);  // thesis 5.6: seven Basler cameras
-  // 3 locations x 2 levels x 30 steps x 1 frame per step.
-  EXPECT_EQ(plan->expected_triggers(), 180);
+  // 2 locations x 2 levels x 30 steps x 1 frame per step.
+  EXPECT_EQ(plan->expected_triggers(), 120);
   EXPECT_EQ(plan->specimen.at("material"), "Tango Black Plus");
   EXPECT_FALSE(plan->source_text.empty());
 }
