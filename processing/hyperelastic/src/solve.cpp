@@ -325,38 +325,72 @@ Status indent(const NeoHookeanModel& model, const Boundary& boundary, RigidProbe
       depth = target;
       force = *f;
     } else {
-      // Secant iteration on F(d) − target from the last equilibrium.
+      // Root of F(d) − target, bracketed: `lo` is the deepest depth known to give less than the
+      // target (its equilibrium warm-starts every trial), `hi` the shallowest known to give more
+      // or where Newton failed (an overshoot that inverts elements). Steps are secant / regula
+      // falsi (Illinois) inside the bracket, bisection when that leaves it, and geometric growth
+      // while there is no contact yet.
       const double target = options.force_n * i / options.steps;
-      double d0 = depth, f0 = force;
-      double d1 = stiffness > 0 ? depth + (target - force) / stiffness : depth + 1e-3 * size;
-      Eigen::VectorXd x_best = *x;
+      double lo_d = depth, lo_f = force;
+      double hi_d = kInf, hi_f = kInf;
+      double prev_d = depth, prev_f = force;  // the evaluation before the last, for the secant
+      Eigen::VectorXd x_lo = *x;
+      double trial = stiffness > 0 ? (target - force) / stiffness : 1e-3 * size;
+      double d1 = depth + std::max(trial, 1e-9 * size);
+      int same_side = 0;
       bool done = false;
-      for (int k = 0; k < options.max_force_iterations; ++k) {
-        Eigen::VectorXd xk = x_best;
+      for (int k = 0; k < options.max_force_iterations && !done; ++k) {
+        Eigen::VectorXd xk = x_lo;
         Result<double> f1 =
             force_at_depth(model, b, probe, options.solve, d1, &xk, &st.newton_iterations);
-        if (!f1.ok()) return fail(f1.status());
-        x_best = xk;
+        if (!f1.ok() && f1.status().code() == StatusCode::kInvalidArgument)
+          return fail(f1.status());
+        if (!f1.ok()) {  // no equilibrium this deep: an upper bound of unknown force
+          hi_d = d1;
+          hi_f = kInf;
+          d1 = 0.5 * (lo_d + hi_d);
+          continue;
+        }
         if (std::abs(*f1 - target) <= options.force_relative_tolerance * target) {
           depth = d1;
           force = *f1;
+          *x = xk;
           done = true;
           break;
         }
         double d2;
-        if (*f1 != f0 && (*f1 - f0) / (d1 - d0) > 0) {
-          d2 = d1 + (target - *f1) * (d1 - d0) / (*f1 - f0);
+        if (*f1 < target) {
+          prev_d = lo_d;
+          prev_f = lo_f;
+          lo_d = d1;
+          lo_f = *f1;
+          x_lo = xk;
+          same_side = same_side > 0 ? same_side + 1 : 1;
+          if (!std::isfinite(hi_d)) {
+            // Extrapolate (secant, at most 4× the last step) or, without contact, double.
+            const double last = lo_d - prev_d;
+            d2 = (lo_f > prev_f)
+                     ? lo_d + std::min((target - lo_f) * last / (lo_f - prev_f), 4 * last)
+                     : lo_d + 2 * last;
+            if (lo_d - depth > size)
+              return fail(failed_precondition(
+                  "force control diverged: the probe does not reach the specimen (unreachable "
+                  "probe)"));
+            d1 = d2;
+            continue;
+          }
+          if (same_side >= 2 && std::isfinite(hi_f)) hi_f = target + 0.5 * (hi_f - target);
         } else {
-          d2 = d1 + 2 * (d1 - d0);  // no contact yet (zero force): move on, faster
+          hi_d = d1;
+          hi_f = *f1;
+          same_side = same_side < 0 ? same_side - 1 : -1;
+          if (same_side <= -2) lo_f = target - 0.5 * (target - lo_f);
         }
-        if (!std::isfinite(d2) || std::abs(d2 - d1) > size)
-          return fail(failed_precondition(
-              "force control diverged: the probe does not reach the specimen (unreachable probe)"));
-        d0 = d1;
-        f0 = *f1;
+        d2 = std::isfinite(hi_f) ? lo_d + (target - lo_f) * (hi_d - lo_d) / (hi_f - lo_f)
+                                 : 0.5 * (lo_d + hi_d);
+        if (!(d2 > lo_d && d2 < hi_d)) d2 = 0.5 * (lo_d + hi_d);
         d1 = d2;
       }
-      *x = x_best;
       if (!done)
         return fail(failed_precondition(
             fmt::format("force control: {} N not reached within {} depth iterations", target,

@@ -467,3 +467,48 @@ TEST(Treloar, FittedShearModulusReproducesSmallStretchData) {
 
 }  // namespace
 }  // namespace hc::hyperelastic
+
+namespace hc::hyperelastic {
+namespace {
+
+// Force control from a probe that starts 2 mm above the block: the depth search first finds the
+// contact (no force), then brackets the target; the answer matches depth control at the depth
+// it reports.
+TEST(Indent, ForceControlFromAGap) {
+  Result<TetMesh> mesh =
+      meshing::structured_box(Eigen::Vector3d(0.02, 0.02, 0.01), Eigen::Vector3i(4, 4, 2));
+  ASSERT_TRUE(mesh.ok());
+  Result<NeoHookeanModel> m = NeoHookeanModel::create(*mesh, {NeoHookeanMaterial{1e5, 0.45, 1.0}});
+  ASSERT_TRUE(m.ok());
+  Boundary bd;
+  bd.fixed_nodes = meshing::nodes_with_marker(*mesh, meshing::kMarkerBottom);
+  ProbeOptions po;
+  po.radius_m = 0.005;
+  po.start_position_m = Eigen::Vector3d(0.01, 0.01, 0.01 + 0.005 + 0.002);
+  po.stiffness_n_per_m = 1e5;
+  std::unique_ptr<RigidProbe> probe = make_sphere_probe(po);
+  IndentOptions fo;
+  fo.force_control = true;
+  fo.force_n = 0.3;
+  fo.steps = 3;
+  Eigen::VectorXd x = m->rest_positions();
+  IndentSummary s;
+  ASSERT_TRUE(indent(*m, bd, *probe, fo, &x, &s).ok());
+  ASSERT_TRUE(s.usable) << s.message;
+  ASSERT_EQ(s.steps.size(), 3u);
+  EXPECT_NEAR(s.steps[0].force_n, 0.1, 1e-4 * 0.1);
+  EXPECT_NEAR(s.force_n, 0.3, 1e-4 * 0.3);
+  EXPECT_GT(s.depth_m, 0.002);  // past the gap
+  std::unique_ptr<RigidProbe> probe2 = make_sphere_probe(po);
+  IndentOptions io;
+  io.depth_m = s.depth_m;
+  io.steps = 3;
+  Eigen::VectorXd x2 = m->rest_positions();
+  IndentSummary s2;
+  ASSERT_TRUE(indent(*m, bd, *probe2, io, &x2, &s2).ok());
+  ASSERT_TRUE(s2.usable) << s2.message;
+  EXPECT_NEAR(s2.force_n, 0.3, 2e-4 * 0.3);
+}
+
+}  // namespace
+}  // namespace hc::hyperelastic
