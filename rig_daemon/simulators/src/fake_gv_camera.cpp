@@ -87,9 +87,13 @@ Result<std::unique_ptr<FakeGvCamera>> FakeGvCamera::start(const FakeGvCameraOpti
                         std::to_string(options.lock_timeout_s) + " s");
     std::this_thread::sleep_for(std::chrono::milliseconds(20));
   }
-  // Someone else's stray fake camera (not ours: we hold the lock) would answer discovery too.
-  if (gvcp_discovery_answers("127.0.0.1", 0.05))
-    return failed_precondition("something already answers GVCP on 127.0.0.1:3956");
+  // A camera started without this lock (another program's) would answer discovery too: wait
+  // for it to go away, within the lock timeout.
+  while (gvcp_discovery_answers("127.0.0.1", 0.05)) {
+    if (seconds_since(t0) > options.lock_timeout_s)
+      return failed_precondition("something else keeps answering GVCP on 127.0.0.1:3956");
+    std::this_thread::sleep_for(std::chrono::milliseconds(100));
+  }
   std::vector<std::string> args = {binary, "-i", "127.0.0.1", "-s", options.serial};
   if (options.gvsp_lost_per_thousand > 0) {
     args.push_back("-r");
