@@ -8,6 +8,7 @@
 #include <unistd.h>
 #include <zlib.h>
 
+#include <algorithm>
 #include <cerrno>
 #include <condition_variable>
 #include <cstring>
@@ -220,7 +221,12 @@ class McapWriter::Impl {
     const std::uint32_t seq = sequence ? *sequence : cs.next_sequence;
     cs.next_sequence = seq + 1;
     c.index[channel_id].emplace_back(log_time, c.records.size());
-    c.records.reserve(c.records.size() + kRecordPrefixSize + 22 + data.size());
+    // Grow geometrically (an exact reserve per message would copy the chunk again every time).
+    const std::size_t need = c.records.size() + kRecordPrefixSize + 22 + data.size();
+    if (need > c.records.capacity())
+      c.records.reserve(std::max<std::size_t>(
+          {need, 2 * c.records.capacity(),
+           static_cast<std::size_t>(std::min<std::uint64_t>(opt_.chunk_size, 64u << 20)) + 4096}));
     encode_message(channel_id, seq, log_time, publish_time, data, c.records);
     if (c.message_count == 0) {
       c.start_time = c.end_time = log_time;
