@@ -16,6 +16,7 @@ namespace {
 
 constexpr std::size_t kMaxBatch = 4096;
 constexpr std::int64_t kForever = std::numeric_limits<std::int64_t>::max();
+constexpr std::int64_t kPrefetchNs = 1'000'000'000;  // time series read ahead per slice
 
 std::string_view text(const ReplaySession::Message& m) {
   return {reinterpret_cast<const char*>(m.data.data()), m.data.size()};
@@ -92,8 +93,11 @@ struct ReplayBinding {
 template <typename Item>
 class ReplayCursor {
  public:
-  void reset(const ReplayBinding* b) {
+  // prefetch_ns: recorded time read ahead per slice, so that a chunk is decompressed about once
+  // per slice rather than once per read() (1 s for time series; 0 for frames, which are big).
+  void reset(const ReplayBinding* b, std::int64_t prefetch_ns) {
     binding_ = b;
+    prefetch_ns_ = prefetch_ns;
     next_ns_ = std::numeric_limits<std::int64_t>::min();
     skip_ = 0;
     pending_.clear();
@@ -107,7 +111,8 @@ class ReplayCursor {
     std::size_t seen_at_next = 0;
     std::size_t taken = 0;
     Status decode_status;
-    const std::int64_t to = std::max(recorded_now + 1, from + 1);
+    const std::int64_t to =
+        std::max(recorded_now + 1, from + std::max<std::int64_t>(1, prefetch_ns_));
     auto visit = [&](const ReplaySession::Message& m) {
       if (m.log_time_ns < next_ns_) return true;  // taken in an earlier slice
       if (m.log_time_ns == next_ns_ && seen_at_next < skip_) {
@@ -127,7 +132,7 @@ class ReplayCursor {
         next_ns_ = m.log_time_ns;
         skip_ = 1;
       }
-      return ++taken < kMaxBatch;
+      return ++taken < kMaxBatch * 16;
     };
     HC_RETURN_IF_ERROR(binding_->session->read(*binding_->stream, from, to, visit));
     HC_RETURN_IF_ERROR(decode_status);
@@ -182,6 +187,7 @@ class ReplayCursor {
 
  private:
   const ReplayBinding* binding_ = nullptr;
+  std::int64_t prefetch_ns_ = 0;
   std::int64_t next_ns_ = 0;
   std::size_t skip_ = 0;  // items at log time next_ns_ already taken
   std::deque<Item> pending_;
@@ -243,7 +249,7 @@ class ReplayCamera final : public Camera {
   }
   Status on_activate() override {
     HC_RETURN_IF_ERROR(bind_and_anchor(binding_, clock()));
-    cursor_.reset(&binding_);
+    cursor_.reset(&binding_, 0);
     index_ = 0;
     return {};
   }
@@ -291,7 +297,7 @@ class ReplayTrigger final : public Trigger {
   }
   Status on_activate() override {
     HC_RETURN_IF_ERROR(bind_and_anchor(binding_, clock()));
-    cursor_.reset(&binding_);
+    cursor_.reset(&binding_, kPrefetchNs);
     return {};
   }
   Status on_deactivate() override { return {}; }
@@ -331,7 +337,7 @@ class ReplayFsr final : public Fsr {
   }
   Status on_activate() override {
     HC_RETURN_IF_ERROR(bind_and_anchor(binding_, clock()));
-    cursor_.reset(&binding_);
+    cursor_.reset(&binding_, kPrefetchNs);
     return {};
   }
   Status on_deactivate() override { return {}; }
@@ -364,7 +370,7 @@ class ReplayForceTorque final : public ForceTorque {
   }
   Status on_activate() override {
     HC_RETURN_IF_ERROR(bind_and_anchor(binding_, clock()));
-    cursor_.reset(&binding_);
+    cursor_.reset(&binding_, kPrefetchNs);
     return {};
   }
   Status on_deactivate() override { return {}; }
