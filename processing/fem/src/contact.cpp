@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <string>
 #include <vector>
 
@@ -22,6 +23,9 @@ Status ContactOptions::validate() const {
   if (!(tolerance_rel > 0) || !(force_tolerance_rel > 0)) {
     return invalid_argument("contact: tolerances must be > 0");
   }
+  if (!std::isfinite(max_depth_step_m) || max_depth_step_m < 0) {
+    return invalid_argument("contact: max_depth_step_m must be >= 0");
+  }
   if (!std::isfinite(max_travel_m) || max_travel_m < 0) {
     return invalid_argument("contact: max_travel_m must be >= 0");
   }
@@ -36,6 +40,8 @@ struct ContactSolver::Impl {
   double travel = 0;
   double size = 0;  // specimen bounding-box diagonal
   double penalty = 0;
+  double max_step = 0;      // largest probe advance per sub-step
+  double solved_depth = 0;  // depth of the state fem currently holds
   const MaterialModel* material = nullptr;
   MatrixX3d contact_forces;
   // Last converged (depth, force) pairs for force-control initial guesses.
@@ -50,6 +56,7 @@ struct ContactSolver::Impl {
   }
 
   Status solve_depth(double depth, ContactSummary* s);
+  Status solve_depth_once(double depth, ContactSummary* s);
 };
 
 ContactSolver::ContactSolver(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) {}
@@ -85,6 +92,20 @@ Result<ContactSolver> ContactSolver::create(CorotationalFem* fem, const Probe& p
                             std::to_string(max_travel) + " m along the probe direction)");
   }
   impl->travel = *t;
+  if (options.max_depth_step_m > 0) {
+    impl->max_step = options.max_depth_step_m;
+  } else {
+    double shortest = std::numeric_limits<double>::infinity();
+    const MatrixX4i& tets = fem->mesh().tets;
+    for (Eigen::Index e = 0; e < tets.rows(); ++e) {
+      for (int a = 0; a < 4; ++a) {
+        for (int b = a + 1; b < 4; ++b) {
+          shortest = std::min(shortest, (rest.row(tets(e, a)) - rest.row(tets(e, b))).norm());
+        }
+      }
+    }
+    impl->max_step = 0.5 * shortest;
+  }
   impl->contact_forces = MatrixX3d::Zero(rest.rows(), 3);
   return ContactSolver(std::move(impl));
 }
@@ -100,6 +121,21 @@ Status ContactSolver::Impl::solve_depth(double depth, ContactSummary* s) {
     return invalid_argument("contact: depth must be a finite number >= 0 m, got " +
                             std::to_string(depth));
   }
+  const double from = solved_depth;
+  const int substeps = std::max(1, static_cast<int>(std::ceil(std::abs(depth - from) / max_step)));
+  if (substeps > 100000) return invalid_argument("contact: depth too large for this mesh");
+  int iterations = 0;
+  for (int k = 1; k <= substeps; ++k) {
+    const double dk = (k == substeps) ? depth : from + (depth - from) * k / substeps;
+    const Status st = solve_depth_once(dk, s);
+    iterations += s->iterations;
+    if (!st.ok()) return st;
+  }
+  s->iterations = iterations;
+  return {};
+}
+
+Status ContactSolver::Impl::solve_depth_once(double depth, ContactSummary* s) {
   probe->set_pose(start_pose);
   probe->advance(travel + depth);
   const Eigen::Index n = fem->num_nodes();
@@ -195,6 +231,7 @@ Status ContactSolver::Impl::solve_depth(double depth, ContactSummary* s) {
   }
   last_depth = depth;
   last_force = force;
+  solved_depth = depth;
   return {};
 }
 
@@ -239,6 +276,17 @@ Status ContactSolver::solve_force(double force_n, ContactSummary* summary) {
       // x4.
       next = f_lo > 0 ? std::min(4.0 * lo, 1.05 * lo * force_n / f_lo) : 2.0 * std::max(lo, d);
     } else {
+      if (hi - lo <= 1e-9 * hi) {
+        // The bracket has collapsed onto a jump of F(d) (a node entering or leaving contact):
+        // no depth gives the target more closely at this mesh resolution. Accept the nearest side
+        // when it is within 1 %.
+        if (std::abs(f - force_n) <= 0.01 * force_n) {
+          cs.iterations = total_iterations;
+          *summary = cs;
+          return {};
+        }
+        break;
+      }
       next = lo + (force_n - f_lo) * (hi - lo) / (f_hi - f_lo);
       const double w = hi - lo;
       if (!(next > lo + 0.01 * w && next < hi - 0.01 * w)) next = 0.5 * (lo + hi);

@@ -5,6 +5,7 @@
 #include <limits>
 #include <numbers>
 #include <string>
+#include <utility>
 
 namespace hc::fem {
 
@@ -158,13 +159,20 @@ Result<std::unique_ptr<MeshProbe>> MeshProbe::create(const TriangleMesh& mesh) {
     return invalid_argument("mesh probe: triangle vertex index out of range");
   }
   auto probe = std::unique_ptr<MeshProbe>(new MeshProbe(mesh));
-  // Closed and outward-oriented: the winding number at the centroid of the vertices (inside for the
-  // convex-ish probe shapes we use) is close to 1, and far outside it is 0.
-  const Eigen::Vector3d far = probe->bounds_.max() + probe->bounds_.diagonal();
-  const double w_far = winding_number(probe->mesh_, far);
-  if (std::abs(w_far) > 0.01) {
-    return invalid_argument("mesh probe: mesh is not closed (winding number " +
-                            std::to_string(w_far) + " far outside)");
+  // Closed and consistently oriented: every directed edge (a, b) has exactly one twin (b, a).
+  std::vector<std::pair<int, int>> edges;
+  edges.reserve(static_cast<size_t>(3 * mesh.num_triangles()));
+  for (Eigen::Index f = 0; f < mesh.num_triangles(); ++f) {
+    for (int k = 0; k < 3; ++k)
+      edges.emplace_back(mesh.triangles(f, k), mesh.triangles(f, (k + 1) % 3));
+  }
+  std::sort(edges.begin(), edges.end());
+  for (const auto& [a, b] : edges) {
+    const auto range = std::equal_range(edges.begin(), edges.end(), std::make_pair(b, a));
+    if (range.second - range.first != 1) {
+      return invalid_argument("mesh probe: mesh is not closed and consistently oriented (edge " +
+                              std::to_string(a) + "-" + std::to_string(b) + ")");
+    }
   }
   double volume = 0;  // divergence theorem: positive for a closed outward-oriented mesh
   for (Eigen::Index f = 0; f < mesh.num_triangles(); ++f) {

@@ -40,6 +40,11 @@ struct ContactOptions {
   // The probe must touch the specimen within this travel from its start pose ("unreachable"
   // otherwise); 0 = 10 x the specimen's bounding-box diagonal.
   double max_travel_m = 0;
+  // Largest probe advance per internal sub-step (0 = auto: half the shortest mesh edge). The
+  // closest- point projection of the distance field sends nodes that penetrate deeper than their
+  // distance to a probe's side out sideways; advancing the probe in sub-steps keeps nodes on the
+  // face they met.
+  double max_depth_step_m = 0;
 
   Status validate() const;
 };

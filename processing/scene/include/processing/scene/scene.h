@@ -1,0 +1,106 @@
+// The scene of `hardcopy simulate SCENE.json` (contract in issue 3):
+//   {"specimen": {"box_m": [x, y, z], "max_tet_volume_m3": v}          TetGen box [0,x]x[0,y]x[0,z]
+//              | {"box_m": [x, y, z], "cells": [nx, ny, nz]}            structured (Kuhn) box
+//              | {"mesh": PATH, "scale_to_m": s, "max_tet_volume_m3": v} closed surface -> TetGen
+//    "material": {"linear": {"youngs_pa": E, "poisson": nu}}            co-rotational FEM
+//              | {"neo_hookean": {"youngs_pa": E, "poisson": nu}}       hyperelastic reference
+//              model | [{"z_m": [z0, z1], "linear" | "neo_hookean": {...}}, ...]  layers (all of
+//              one kind) | {"file": MATERIAL.json}                                data-driven (RBF)
+//              material
+//    "fixed": "bottom" | [node, ...],
+//    "probe": {"shape": "sphere" | "flat" | "mesh", "radius_m": r, "position_m": [x, y, z],
+//              "direction": [dx, dy, dz], "mesh": PATH, "scale_to_m": s},
+//    "load": {"depth_m": d} | {"force_n": f},
+//    "steps": n}                                                         optional, default 10
+// Relative paths are resolved against the scene file's folder. Units are SI throughout.
+#pragma once
+
+#include <Eigen/Core>
+#include <filesystem>
+#include <optional>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "common/progress.h"
+#include "common/status.h"
+#include "common/tet_mesh.h"
+#include "processing/fem/contact.h"
+#include "processing/fem/incremental.h"
+
+namespace hc::scene {
+
+struct SpecimenSpec {
+  enum class Kind { kBox, kMesh };
+  Kind kind = Kind::kBox;
+  Eigen::Vector3d box_m = Eigen::Vector3d::Zero();
+  double max_tet_volume_m3 = 0;          // 0: TetGen's default sizing
+  std::optional<Eigen::Vector3i> cells;  // structured box instead of TetGen
+  std::filesystem::path mesh;            // kMesh
+  double scale_to_m = 1;
+};
+
+enum class MaterialKind { kLinear, kNeoHookean, kLayered, kFile };
+
+struct LayerSpec {
+  double z_min_m = 0;
+  double z_max_m = 0;
+  bool neo_hookean = false;
+  double youngs_pa = 0;
+  double poisson = 0;
+};
+
+struct MaterialSpec {
+  MaterialKind kind = MaterialKind::kLinear;
+  double youngs_pa = 0;
+  double poisson = 0;
+  std::vector<LayerSpec> layers;  // kLayered
+  std::filesystem::path file;     // kFile
+};
+
+struct ProbeSpec {
+  enum class Shape { kSphere, kFlat, kMesh };
+  Shape shape = Shape::kSphere;
+  double radius_m = 0;
+  Eigen::Vector3d position_m = Eigen::Vector3d::Zero();
+  Eigen::Vector3d direction = -Eigen::Vector3d::UnitZ();
+  std::filesystem::path mesh;  // kMesh
+  double scale_to_m = 1;
+};
+
+struct Scene {
+  SpecimenSpec specimen;
+  MaterialSpec material;
+  bool fixed_bottom = true;
+  std::vector<int> fixed_nodes;  // when !fixed_bottom
+  ProbeSpec probe;
+  fem::Load load;
+  int steps = 10;
+};
+
+// Parses and validates a scene (missing/unknown keys, wrong types, non-finite or out-of-range
+// numbers are invalid_argument naming the key). `base_dir` resolves relative paths.
+Result<Scene> parse_scene(std::string_view text, std::string_view name,
+                          const std::filesystem::path& base_dir);
+Result<Scene> read_scene(const std::filesystem::path& path);
+
+// The specimen's tet mesh (box or surface via processing/meshing).
+Result<TetMesh> build_specimen(const SpecimenSpec& spec);
+
+struct SimulationResult {
+  std::string model;  // "corotational_linear", "corotational_data_driven", "neo_hookean"
+  double force_n = 0;
+  double depth_m = 0;
+  double max_displacement_m = 0;
+  std::vector<fem::LoadStep> steps;
+  TetMesh mesh;
+  MatrixX3d positions;  // deformed
+  double time_s = 0;
+};
+
+// Builds the specimen, the material and the probe and runs the incremental load. Errors: bad input
+// (invalid_argument: inverted/degenerate elements, unreachable probe, fixed node out of range,
+// material for a different mesh) or no equilibrium (failed_precondition).
+Result<SimulationResult> simulate(const Scene& scene, ProgressReporter* progress = nullptr);
+
+}  // namespace hc::scene
