@@ -1,20 +1,177 @@
-// hardcopy fit heterogeneous | evaluate: the data-driven material of thesis Ch. 4.
+// hardcopy synth | fit heterogeneous | evaluate: the data-driven material of thesis Ch. 4.
 #include <fmt/format.h>
 
+#include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <string>
 
 #include "command.h"
 #include "common/json.h"
+#include "processing/hyperelastic/neo_hookean.h"
 #include "processing/material/fit.h"
 #include "processing/material/material.h"
 #include "processing/material/samples.h"
+#include "processing/material/synth.h"
+#include "processing/scene/scene.h"
 
 namespace hc::cli {
 namespace {
 
 using material::Material;
 using material::Samples;
+
+struct SynthArgs {
+  std::string scene;
+  std::string output;
+  int examples = 12;
+  double noise = 0;
+  std::uint64_t seed = 1;
+  bool surface_only = false;
+  bool json = false;
+};
+
+// Penalty stiffness of the reference model's probe per unit Young's modulus and length (N/m per
+// Pa·m): stiff against the specimen at the scale of an element, so penetration stays small.
+constexpr double kPenaltyPerModulusLength = 50.0;
+
+// The neo-Hookean reference (processing/hyperelastic) under force control, for synthesize_samples.
+material::ReferenceSimulator neo_hookean_simulator(
+    const TetMesh& mesh, const std::vector<hyperelastic::NeoHookeanMaterial>& per_tet,
+    const std::vector<int>& fixed, int steps) {
+  return
+      [&mesh, &per_tet, &fixed, steps](const material::ProbePose& pose,
+                                       double force_n) -> Result<material::ReferenceIndentation> {
+        HC_ASSIGN_OR_RETURN(hyperelastic::NeoHookeanModel model,
+                            hyperelastic::NeoHookeanModel::create(mesh, per_tet));
+        // Start at first contact with a node: the reference's force control takes secant steps in
+        // depth and overshoots when its first steps find no contact.
+        const Eigen::Vector3d d = pose.direction.normalized();
+        double travel = 1e300;
+        for (Eigen::Index n = 0; n < mesh.num_nodes(); ++n) {
+          const Eigen::Vector3d w = mesh.nodes.row(n).transpose() - pose.position_m;
+          const double along = w.dot(d);
+          const Eigen::Vector3d off = w - along * d;
+          if (pose.shape == "sphere") {
+            // |p − (c + t d)| = r  →  t = (p−c)·d − sqrt(r² − |off|²)
+            if (off.squaredNorm() <= pose.radius_m * pose.radius_m)
+              travel = std::min(
+                  travel, along - std::sqrt(pose.radius_m * pose.radius_m - off.squaredNorm()));
+          } else if (off.norm() <= pose.radius_m) {
+            travel = std::min(travel, along);  // flat face reaches the node
+          }
+        }
+        if (travel > 1e299) return invalid_argument("the probe does not reach the specimen");
+        double e_mean = 0;
+        for (const auto& m : per_tet) e_mean += m.youngs_pa / static_cast<double>(per_tet.size());
+        hyperelastic::ProbeOptions po;
+        po.start_position_m = pose.position_m + std::max(travel, 0.0) * d;
+        po.direction = d;
+        po.radius_m = pose.radius_m;
+        po.stiffness_n_per_m = kPenaltyPerModulusLength * e_mean * pose.radius_m;
+        std::unique_ptr<hyperelastic::RigidProbe> probe = pose.shape == "sphere"
+                                                              ? hyperelastic::make_sphere_probe(po)
+                                                              : hyperelastic::make_flat_probe(po);
+        hyperelastic::Boundary boundary;
+        boundary.fixed_nodes = fixed;
+        hyperelastic::IndentOptions io;
+        io.steps = steps;
+        io.force_control = true;
+        io.force_n = force_n;
+        Eigen::VectorXd x = model.rest_positions();
+        hyperelastic::IndentSummary is;
+        HC_RETURN_IF_ERROR(hyperelastic::indent(model, boundary, *probe, io, &x, &is));
+        if (!is.usable) return failed_precondition("reference indentation: " + is.message);
+        material::ReferenceIndentation out;
+        out.positions_m = Eigen::Map<const MatrixX3d>(x.data(), mesh.num_nodes(), 3);
+        out.contact_forces_n = MatrixX3d::Zero(mesh.num_nodes(), 3);
+        for (Eigen::Index n = 0; n < mesh.num_nodes(); ++n) {
+          Eigen::Vector3d grad = Eigen::Vector3d::Zero();
+          probe->node_energy(x.segment<3>(3 * n), &grad, nullptr);
+          out.contact_forces_n.row(n) = -grad.transpose();  // force on the node = −∂E/∂x
+        }
+        return out;
+      };
+}
+
+int run_synth(const GlobalOptions& global, const SynthArgs& args) {
+  Context ctx(global);
+  constexpr std::string_view kName = "synth";
+  Result<scene::Scene> sc = scene::read_scene(args.scene);
+  if (!sc.ok()) return ctx.fail(kName, sc.status());
+  const auto bad = [&](const std::string& what) {
+    (void)ctx.fail(kName, invalid_argument(fmt::format("{}: {}", args.scene, what)));
+    return kExitBadInput;
+  };
+  if (sc->load.control != fem::LoadControl::kForce)
+    return bad("synth needs \"load\": {\"force_n\": F} (the largest example force)");
+  if (sc->probe.shape == scene::ProbeSpec::Shape::kMesh)
+    return bad("synth supports sphere and flat probes");
+  Result<TetMesh> mesh = scene::build_specimen(sc->specimen);
+  if (!mesh.ok()) return ctx.fail(kName, mesh.status());
+  std::vector<hyperelastic::NeoHookeanMaterial> per_tet;
+  const scene::MaterialSpec& ms = sc->material;
+  if (ms.kind == scene::MaterialKind::kNeoHookean || ms.kind == scene::MaterialKind::kLinear) {
+    // A linear scene material is taken as the neo-Hookean with the same small-strain constants:
+    // synthetic samples always come from the hyperelastic reference model.
+    per_tet.assign(static_cast<std::size_t>(mesh->num_tets()), {ms.youngs_pa, ms.poisson, 0.0});
+  } else if (ms.kind == scene::MaterialKind::kLayered) {
+    std::vector<hyperelastic::MaterialLayer> layers;
+    for (const scene::LayerSpec& l : ms.layers)
+      layers.push_back({l.z_min_m, l.z_max_m, {l.youngs_pa, l.poisson, 0.0}});
+    Result<std::vector<hyperelastic::NeoHookeanMaterial>> lm =
+        hyperelastic::layered_materials(*mesh, layers);
+    if (!lm.ok()) return ctx.fail(kName, lm.status());
+    per_tet = std::move(lm).value();
+  } else {
+    return bad("synth needs a neo_hookean, linear or layered material (the reference model)");
+  }
+  std::vector<int> fixed = sc->fixed_nodes;
+  if (sc->fixed_bottom) {
+    const double zmin = mesh->nodes.col(2).minCoeff();
+    const double tol =
+        1e-9 * (mesh->nodes.colwise().maxCoeff() - mesh->nodes.colwise().minCoeff()).norm();
+    fixed.clear();
+    for (Eigen::Index n = 0; n < mesh->num_nodes(); ++n)
+      if (mesh->nodes(n, 2) <= zmin + tol) fixed.push_back(static_cast<int>(n));
+  }
+  std::sort(fixed.begin(), fixed.end());
+  fixed.erase(std::unique(fixed.begin(), fixed.end()), fixed.end());
+  material::SynthOptions options;
+  options.examples = args.examples;
+  options.noise = args.noise;
+  options.seed = args.seed;
+  options.probe.shape = sc->probe.shape == scene::ProbeSpec::Shape::kSphere ? "sphere" : "flat";
+  options.probe.radius_m = sc->probe.radius_m;
+  options.probe.direction = sc->probe.direction.normalized();
+  options.max_force_n = sc->load.value;
+  options.surface_only = args.surface_only;
+  options.fixed_nodes = fixed;
+  options.progress = ctx.progress();
+  if (Status s = options.validate(); !s.ok()) return bad(s.message());
+  const auto t0 = std::chrono::steady_clock::now();
+  Result<Samples> samples = material::synthesize_samples(
+      *mesh, neo_hookean_simulator(*mesh, per_tet, fixed, std::max(1, sc->steps)), options);
+  if (!samples.ok()) {
+    const int code = ctx.fail(kName, samples.status());
+    return samples.status().code() == StatusCode::kInvalidArgument ? kExitBadInput : code;
+  }
+  if (Status s = material::save_samples(args.output, *samples); !s.ok()) return ctx.fail(kName, s);
+  const double time_s =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  if (args.json) {
+    Json j = {{"scene", args.scene},       {"output", args.output},
+              {"examples", args.examples}, {"noise", args.noise},
+              {"seed", args.seed},         {"nodes", mesh->num_nodes()},
+              {"tets", mesh->num_tets()},  {"max_displacement_m", samples->max_displacement_m()},
+              {"time_s", time_s}};
+    if (Status s = print_json(j); !s.ok()) return ctx.fail(kName, s);
+  } else {
+    fmt::print("wrote {} ({} examples, {} tets, max displacement {:.4g} m, {:.1f} s)\n",
+               args.output, args.examples, mesh->num_tets(), samples->max_displacement_m(), time_s);
+  }
+  return kExitYes;
+}
 
 struct FitArgs {
   std::string samples;
@@ -123,6 +280,28 @@ int run_evaluate(const GlobalOptions& global, const EvaluateArgs& args) {
 }  // namespace
 
 void add_material_commands(CLI::App& app, const GlobalOptions& global, int* exit_code) {
+  auto sa = std::make_shared<SynthArgs>();
+  CLI::App* sy = app.add_subcommand(
+      "synth",
+      "Synthetic force-displacement samples from the neo-Hookean reference model (thesis Sec. "
+      "4.5): probe positions and force levels (up to the scene's load.force_n) spread over the "
+      "top face, Gaussian noise on the displacements.\nExit 0 on success, 2 on bad input.");
+  sy->add_option("SCENE", sa->scene, "Scene JSON (as for hardcopy simulate)")->required();
+  sy->add_option("-o,--output", sa->output, "Samples JSON to write")->required();
+  sy->add_option("--examples", sa->examples, "Number of examples")
+      ->check(CLI::PositiveNumber)
+      ->capture_default_str();
+  sy->add_option("--noise", sa->noise,
+                 "Gaussian noise on each measured coordinate, standard deviation relative to the "
+                 "example's largest displacement (0.1 = 10 %)")
+      ->check(CLI::NonNegativeNumber)
+      ->capture_default_str();
+  sy->add_option("--seed", sa->seed, "Random seed (placement and noise)")->capture_default_str();
+  sy->add_flag("--surface-only", sa->surface_only,
+               "Mark only boundary nodes visible (like surface markers)");
+  sy->add_flag("--json", sa->json, "Print one JSON object");
+  sy->callback([&global, sa, exit_code] { *exit_code = run_synth(global, *sa); });
+
   CLI::App* fit = app.add_subcommand("fit", "Fit materials to force-displacement samples");
   fit->require_subcommand(1);
   auto fa = std::make_shared<FitArgs>();

@@ -87,6 +87,7 @@ Result<Material> fit_heterogeneous(const Samples& samples, const HeterogeneousFi
   RbfFitOptions rbf_options;
   rbf_options.tolerance = options.rbf.tolerance;
   rbf_options.max_basis = options.rbf.max_basis;
+  rbf_options.lambda_floor_fraction = options.rbf.lambda_floor_fraction;
   rbf_options.max_poisson = options.parameters.max_poisson;
   tbb::parallel_for(Eigen::Index{0}, t, [&](Eigen::Index e) {
     std::vector<Vector6d> s(n);

@@ -12,8 +12,6 @@ namespace hc::material {
 namespace {
 // Distinct stream for the noise so that the example layout does not depend on the noise level.
 constexpr std::uint64_t kNoiseStream = 0x9e3779b97f4a7c15ULL;
-// Gap between the probe surface and the specimen at the start pose (fraction of the probe radius).
-constexpr double kStartClearance = 0.05;
 }  // namespace
 
 Status SynthOptions::validate() const {
@@ -96,8 +94,9 @@ Result<Samples> synthesize_samples(const TetMesh& mesh, const ReferenceSimulator
     probe.direction = dir;
     const double x = lo.x() + size.x() * (m + (1 - 2 * m) * fx);
     const double y = lo.y() + size.y() * (m + (1 - 2 * m) * fy);
-    // Start above the top face (for a downward probe) by the radius plus a small clearance.
-    const double lift = probe.radius_m * (1 + kStartClearance) + 1e-6 * size.norm();
+    // Start just touching the top face's plane (for a downward probe): reference models that
+    // search the depth for a force by secant steps do badly when the first steps find no contact.
+    const double lift = probe.radius_m;
     probe.position_m = Eigen::Vector3d(x, y, hi.z()) - lift * dir;
     const double force = options.max_force_n * (options.min_force_fraction +
                                                 (1 - options.min_force_fraction) * unit(rng));

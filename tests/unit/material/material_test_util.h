@@ -13,8 +13,8 @@
 #include "processing/fem/corotational.h"
 #include "processing/fem/incremental.h"
 #include "processing/fem/material_model.h"
-#include "processing/material/samples.h"
 #include "processing/material/material.h"
+#include "processing/material/samples.h"
 #include "processing/material/synth.h"
 
 namespace hc::material::testing {
@@ -103,7 +103,8 @@ struct StiffeningReference {
   explicit StiffeningReference(TetMesh m = box_mesh(4, 4, 2, 0.04, 0.04, 0.02))
       : mesh(std::move(m)) {}
   fem::LambdaAlpha p0 = fem::lambda_alpha_from_youngs_poisson(60e3, 0.3);
-  fem::LinearStrainMaterial material{p0, (fem::Vector6d() << 0, 0, -20 * p0.lambda, 0, 0, 0).finished(),
+  fem::LinearStrainMaterial material{p0,
+                                     (fem::Vector6d() << 0, 0, -20 * p0.lambda, 0, 0, 0).finished(),
                                      (fem::Vector6d() << 0, 0, -20 * p0.alpha, 0, 0, 0).finished()};
 
   // The "probe" is a pressure patch: the force spread equally over the top nodes within the probe

@@ -130,6 +130,9 @@ struct HeterogeneousFitOptions {
   struct RbfOptions {
     double tolerance = 0.05;
     int max_basis = 12;
+    // λ floor of each element's RBF = this × the smallest λ its examples gave (guards against
+    // interpolants that dive towards zero stiffness between noisy samples).
+    double lambda_floor_fraction = 0.5;
   } rbf;
   int threads = 0;  // examples fitted in parallel (0: TBB's default)
   ProgressReporter* progress = nullptr;

@@ -38,7 +38,7 @@ struct SynthOptions {
   double noise = 0;
   std::uint64_t seed = 1;
   // Probe template: shape, radius and direction; positions are spread over the top face, with the
-  // probe placed radius + clearance above it (along −direction).
+  // probe's reference point one radius above it (along −direction), i.e. just touching.
   ProbePose probe;
   double max_force_n = 1.0;  // force levels uniform in [min_force_fraction, 1] × max
   double min_force_fraction = 0.2;
