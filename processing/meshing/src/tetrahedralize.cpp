@@ -196,6 +196,41 @@ Result<TetMesh> tetrahedralize(const TriangleMesh& surface, const Tetrahedralize
     return invalid_argument("surface has a triangle index out of range");
   if (nv > std::numeric_limits<int>::max() / 3 || nf > std::numeric_limits<int>::max())
     return invalid_argument("surface too large for TetGen");
+  // TetGen 1.5.0 frees its memory twice when it gives up on an input (terminatetetgen() frees,
+  // then the unwinding destructor frees again: measured as a crash under AddressSanitizer on an
+  // open surface), so the common defects are refused here, before TetGen sees them: every directed
+  // edge must occur once and its reverse once (closed, manifold, consistently oriented), and no
+  // triangle may repeat a corner.
+  {
+    std::vector<std::uint64_t> edges;
+    edges.reserve(static_cast<std::size_t>(3 * nf));
+    const auto key = [](int a, int b) {
+      return (static_cast<std::uint64_t>(static_cast<std::uint32_t>(a)) << 32) |
+             static_cast<std::uint32_t>(b);
+    };
+    for (Eigen::Index f = 0; f < nf; ++f) {
+      const int a = surface.triangles(f, 0), b = surface.triangles(f, 1),
+                c = surface.triangles(f, 2);
+      if (a == b || b == c || a == c)
+        return invalid_argument(fmt::format("surface triangle {} repeats a vertex", f));
+      edges.push_back(key(a, b));
+      edges.push_back(key(b, c));
+      edges.push_back(key(c, a));
+    }
+    std::sort(edges.begin(), edges.end());
+    std::size_t bad = 0;
+    for (std::size_t i = 0; i < edges.size(); ++i) {
+      const bool repeated =
+          (i > 0 && edges[i] == edges[i - 1]) || (i + 1 < edges.size() && edges[i] == edges[i + 1]);
+      const std::uint64_t rev = (edges[i] << 32) | (edges[i] >> 32);
+      if (repeated || !std::binary_search(edges.begin(), edges.end(), rev)) ++bad;
+    }
+    if (bad > 0)
+      return invalid_argument(fmt::format(
+          "surface is not closed and consistently oriented: {} of {} edge sides have no single "
+          "opposite partner (TetGen needs a closed manifold surface; try `hardcopy mesh repair`)",
+          bad, edges.size()));
+  }
 
   tetgenio in;  // frees every list below in its destructor (delete[])
   in.firstnumber = 0;

@@ -290,6 +290,21 @@ TEST(Surface, BadSurfaces) {
   box = box_surface(Eigen::Vector3d(1, 1, 1));
   box.vertices(0, 0) = NAN;
   EXPECT_THAT(tetrahedralize(box, o).status().message(), HasSubstr("non-finite"));
+  // Open (MANIFEST.md: ChineseDragon-10kv.off has 6 boundary edges) or misoriented
+  // (blobby-shuffled.off) surfaces are refused before TetGen sees them.
+  for (const char* name : {"ChineseDragon-10kv.off", "blobby-shuffled.off"}) {
+    Result<TriangleMesh> s = read_mesh(shared_data("meshes") / name);
+    ASSERT_TRUE(s.ok());
+    Result<TetMesh> m = tetrahedralize(*s, o);
+    ASSERT_FALSE(m.ok()) << name;
+    EXPECT_EQ(m.status().code(), StatusCode::kInvalidArgument);
+    EXPECT_THAT(m.status().message(), HasSubstr("not closed")) << name;
+  }
+  box = box_surface(Eigen::Vector3d(1, 1, 1));
+  std::swap(box.triangles(0, 1), box.triangles(0, 2));  // one flipped triangle
+  EXPECT_THAT(tetrahedralize(box, o).status().message(), HasSubstr("not closed"));
+  box.triangles.conservativeResize(11, 3);  // a hole
+  EXPECT_THAT(tetrahedralize(box, o).status().message(), HasSubstr("not closed"));
 }
 
 }  // namespace
