@@ -69,6 +69,11 @@ Status WorldOptions::read(ConfigNode node) {
   }
   node.optional("max_speed_m_s", arm_limits.max_speed_m_s, Bounds::positive());
   if (std::optional<ConfigNode> s = node.find("specimen")) {
+    s->optional("model", specimen_model, {"hertz", "hyperelastic"});
+    s->optional("height_m", hyperelastic.height_m, Bounds::positive());
+    s->optional("layers", hyperelastic.layers, Bounds::between(1, 64));
+    s->optional("max_depth_m", hyperelastic.max_depth_m, Bounds::positive());
+    s->optional("depth_steps", hyperelastic.depth_steps, Bounds::between(1, 200));
     std::array<double, 2> c{specimen.center_m.x(), specimen.center_m.y()};
     std::array<double, 2> sz{specimen.size_m.x(), specimen.size_m.y()};
     s->optional("youngs_modulus_pa", specimen.youngs_modulus_pa, Bounds::positive());
@@ -80,11 +85,22 @@ Status WorldOptions::read(ConfigNode node) {
     s->optional("marker_spacing_m", specimen.marker_spacing_m, Bounds::positive());
     s->optional("marker_radius_m", specimen.marker_radius_m, Bounds::positive());
   }
+  // The shared specimen keys feed both models.
+  hyperelastic.youngs_modulus_pa = specimen.youngs_modulus_pa;
+  hyperelastic.poisson_ratio = specimen.poisson_ratio;
+  hyperelastic.stiffening = specimen.stiffening;
+  hyperelastic.top_z_m = specimen.top_z_m;
+  hyperelastic.center_m = specimen.center_m;
+  hyperelastic.size_m = specimen.size_m;
+  hyperelastic.marker_spacing_m = specimen.marker_spacing_m;
+  hyperelastic.marker_radius_m = specimen.marker_radius_m;
+  hyperelastic.probe_radius_m = probe_radius_m;
   return node.status();
 }
 
 Status WorldOptions::validate() const {
   HC_RETURN_IF_ERROR(specimen.validate());
+  if (specimen_model == "hyperelastic") HC_RETURN_IF_ERROR(hyperelastic.validate());
   if (!(probe_radius_m > 0.0)) return invalid_argument("world: probe_radius_m must be > 0");
   if (!arm_limits.contains(home)) return invalid_argument("world: home_m is outside the workspace");
   if (!(arm_speed_m_s > 0.0 && arm_speed_m_s <= arm_limits.max_speed_m_s))
@@ -96,9 +112,17 @@ World::World(WorldOptions options, std::shared_ptr<Clock> clock,
              std::shared_ptr<const Specimen> specimen)
     : options_(std::move(options)),
       clock_(clock ? std::move(clock) : monotonic_clock()),
-      specimen_(specimen ? std::move(specimen)
-                         : std::make_shared<HertzSpecimen>(options_.specimen)),
+      specimen_(std::move(specimen)),
       speed_m_s_(options_.arm_speed_m_s) {
+  if (!specimen_ && options_.specimen_model == "hyperelastic") {
+    Result<std::shared_ptr<HyperelasticSpecimen>> fem =
+        HyperelasticSpecimen::create(options_.hyperelastic);
+    if (fem.ok())
+      specimen_ = std::move(fem).value();
+    else
+      specimen_status_ = fem.status();
+  }
+  if (!specimen_) specimen_ = std::make_shared<HertzSpecimen>(options_.specimen);
   segment_.start_ns = clock_->now_ns();
   segment_.from = segment_.to = options_.home;
 }

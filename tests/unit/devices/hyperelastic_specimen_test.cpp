@@ -79,3 +79,28 @@ TEST(HyperelasticSpecimen, OptionsAreValidated) {
 
 }  // namespace
 }  // namespace hc::devices::sim
+
+#include "rig_daemon/devices/sim_world.h"
+
+namespace hc::devices::sim {
+namespace {
+
+TEST(HyperelasticSpecimen, TheWorldConfigSelectsIt) {
+  Result<Config> config = parse_config(
+      "{seed: 3, specimen: {model: hyperelastic, size_m: [0.03, 0.03], height_m: 0.015,"
+      " layers: 4, max_depth_m: 0.002, depth_steps: 4}}",
+      "world.yaml");
+  ASSERT_TRUE(config.ok());
+  WorldOptions options;
+  Status s = read_config(*config, options);
+  ASSERT_TRUE(s.ok()) << s.to_string();
+  World world(options, std::make_shared<SimulatedClock>());
+  EXPECT_TRUE(world.specimen_status().ok()) << world.specimen_status().to_string();
+  EXPECT_EQ(world.specimen().name(), "hyperelastic");
+  EXPECT_EQ(world.specimen().rest_markers().size(), 121u);
+  // The probe at home (z = 0.15) touches nothing.
+  EXPECT_EQ(world.true_force_n(0), 0.0);
+}
+
+}  // namespace
+}  // namespace hc::devices::sim

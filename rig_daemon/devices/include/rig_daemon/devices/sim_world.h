@@ -23,6 +23,7 @@
 #include "common/config.h"
 #include "common/status.h"
 #include "rig_daemon/devices/clock.h"
+#include "rig_daemon/devices/hyperelastic_specimen.h"
 #include "rig_daemon/devices/specimen.h"
 #include "rig_daemon/devices/types.h"
 
@@ -36,10 +37,14 @@ struct WorldOptions {
   double arm_speed_m_s = 0.02;  // initial Cartesian speed
   double arm_yaw_speed_rad_s = 1.0;
   HertzSpecimen::Options specimen;  // the analytic specimen (when no other Specimen is given)
+  // "hertz" (analytic) or "hyperelastic" (FEM, processing/hyperelastic; hyperelastic_specimen.h).
+  std::string specimen_model = "hertz";
+  HyperelasticSpecimenOptions hyperelastic;  // shares the specimen keys; see read()
 
   // Keys: seed, probe_radius_m, home_m [x, y, z], arm_speed_m_s, workspace_min_m, workspace_max_m,
-  // max_speed_m_s, specimen {youngs_modulus_pa, poisson_ratio, stiffening, top_z_m, center_m,
-  // size_m, marker_spacing_m, marker_radius_m}.
+  // max_speed_m_s, specimen {model: hertz|hyperelastic, youngs_modulus_pa, poisson_ratio,
+  // stiffening, top_z_m, center_m, size_m, marker_spacing_m, marker_radius_m; hyperelastic only:
+  // height_m, layers, max_depth_m, depth_steps}.
   Status read(ConfigNode node);
   Status validate() const;
 };
@@ -76,7 +81,9 @@ struct GroundTruth {
 
 class World {
  public:
-  // `specimen` null: a HertzSpecimen from options.specimen. Check options.validate() first.
+  // `specimen` null: the specimen options.specimen_model names (a hyperelastic one that cannot be
+  // built falls back to the Hertz specimen; specimen_status() says why). Check
+  // options.validate() first.
   World(WorldOptions options, std::shared_ptr<Clock> clock,
         std::shared_ptr<const Specimen> specimen = nullptr);
 
@@ -84,6 +91,8 @@ class World {
   Clock& clock() const { return *clock_; }
   const std::shared_ptr<Clock>& clock_ptr() const { return clock_; }
   const Specimen& specimen() const { return *specimen_; }
+  // OK, or why the configured specimen model could not be built.
+  const Status& specimen_status() const { return specimen_status_; }
   // Seed for a device's own generator: a hash of the world seed and the device name.
   std::uint64_t device_seed(std::string_view device) const;
 
@@ -147,6 +156,7 @@ class World {
   WorldOptions options_;
   std::shared_ptr<Clock> clock_;
   std::shared_ptr<const Specimen> specimen_;
+  Status specimen_status_;
   mutable std::mutex mutex_;
   Segment segment_;
   bool homed_ = false;
