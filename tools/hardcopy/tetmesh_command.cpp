@@ -9,6 +9,7 @@
 #include "common/json.h"
 #include "common/mesh_io.h"
 #include "common/tet_mesh_io.h"
+#include "fabrication/mesh_check.h"
 #include "processing/meshing/tetrahedralize.h"
 
 namespace hc::cli {
@@ -51,6 +52,17 @@ Result<TetMesh> mesh_input(const TetmeshArgs& args, meshing::TetrahedralizeSumma
     return m;
   }
   HC_ASSIGN_OR_RETURN(TriangleMesh surface, read_mesh(args.input));
+  // TetGen 1.5.0 double-frees on its own error path (e.g. self-intersecting facets), so a
+  // surface it would reject is caught here first with the printability check (CGAL).
+  fabrication::MeshCheckOptions check;
+  check.max_self_intersecting_pairs = 1;
+  HC_ASSIGN_OR_RETURN(const fabrication::MeshCheckReport report,
+                      fabrication::check_mesh(surface, check));
+  if (report.self_intersecting_pairs > 0)
+    return invalid_argument(
+        fmt::format("{}: the surface intersects itself; TetGen needs a closed surface without "
+                    "self-intersections (try `hardcopy mesh repair --resolve-self-intersections`)",
+                    args.input));
   surface.vertices *= args.scale_to_m;
   Result<TetMesh> m = meshing::tetrahedralize(surface, options, summary);
   if (!m.ok()) return m.status().with_context(args.input);

@@ -89,6 +89,13 @@ TEST(TetmeshCli, BadInputExitsTwoAndWritesNothing) {
           .exit_code,
       2);
   EXPECT_EQ(hardcopy("tetmesh").exit_code, 2);
+  // Self-intersecting (candleStand.stl: 10 intersecting pairs, tests/unit/tools) and open
+  // (ChineseDragon-10kv.off: 6 boundary edges, MANIFEST.md) surfaces are refused.
+  EXPECT_EQ(hardcopy("tetmesh " + shared_data("meshes/candleStand.stl").string() + out).exit_code,
+            2);
+  EXPECT_EQ(
+      hardcopy("tetmesh " + shared_data("meshes/ChineseDragon-10kv.off").string() + out).exit_code,
+      2);
   EXPECT_FALSE(std::filesystem::exists(dir / "x.node"));
   EXPECT_FALSE(std::filesystem::exists(dir / "x.vtu"));
   EXPECT_EQ(hardcopy("tetmesh --help").exit_code, 0);
