@@ -1,5 +1,6 @@
 // rigd — the rig daemon. `rigd` alone runs the embedded default rig (every device simulated,
-// sessions under ./sessions/); `rigd --config RIG.yaml` a real one. It serves the control protocol
+// sessions under ./sessions/); `rigd --config RIG.yaml` a real one; `rigd --replay S.mcap` serves a
+// recorded session's streams through the same device interfaces. It serves the control protocol
 // on a Unix socket (owner-only) until SIGINT/SIGTERM or a `shutdown` request.
 #include <signal.h>
 #include <CLI/CLI.hpp>
@@ -27,11 +28,14 @@ int main(int argc, char** argv) {
   CLI::App app{"rigd: the Hardcopy capture-rig daemon (control it with rigctl)"};
   std::string config_path, replay_path, socket_path, sessions_dir;
   bool simulated_time = false;
+  double replay_speed = 1.0;
   app.add_option("--config", config_path,
                  "rig config YAML (default: the embedded, all-simulated rig)")
       ->check(CLI::ExistingFile);
   app.add_option("--replay", replay_path,
                  "serve the streams of a recorded session through the same device interfaces");
+  app.add_option("--replay-speed", replay_speed, "replay pacing: 10 = ten times real time")
+      ->check(CLI::PositiveNumber);
   app.add_option("--socket", socket_path, "control socket path (default: from the config)");
   app.add_option("--sessions-dir", sessions_dir,
                  "where sessions are written (default: from the config)");
@@ -47,12 +51,6 @@ int main(int argc, char** argv) {
   if (!config.ok()) return fail(config.status(), 2);
   if (!sessions_dir.empty()) config->sessions_dir = sessions_dir;
   if (!socket_path.empty()) config->socket = socket_path;
-  if (!replay_path.empty()) {
-    return fail(hc::unsupported("--replay " + replay_path +
-                                ": this build has no replay device backends yet"),
-                2);
-  }
-
   // Signals are taken synchronously by the main thread (sigwait), so block them before any
   // thread starts.
   sigset_t signals;
@@ -67,6 +65,8 @@ int main(int argc, char** argv) {
   hc::rig::Daemon::Options options;
   options.config = *config;
   options.software_version = HARDCOPY_VERSION;
+  options.replay = replay_path;
+  options.replay_speed = replay_speed;
   if (simulated_time) options.clock = std::make_shared<hc::devices::SimulatedClock>();
   options.on_event = [&](std::string_view event, const hc::Json& fields) {
     std::lock_guard lock(server_mutex);
@@ -89,7 +89,10 @@ int main(int argc, char** argv) {
     server_ref = std::move(server).value();
   }
   std::fprintf(stderr, "rigd %s: %s rig (%s), sessions in %s, control socket %s\n",
-               HARDCOPY_VERSION, config_path.empty() ? "embedded default" : "configured",
+               HARDCOPY_VERSION,
+               !replay_path.empty()  ? "replayed"
+               : config_path.empty() ? "embedded default"
+                                     : "configured",
                config->source_name.c_str(), config->sessions_dir.c_str(), sock.c_str());
   std::fflush(stderr);
 

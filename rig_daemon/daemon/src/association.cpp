@@ -53,6 +53,7 @@ Json AssociationStats::to_json() const {
 Associator::Associator(Options options) : options_(std::move(options)) {}
 
 void Associator::add_edge(const devices::TriggerEdge& edge) {
+  latest_ns_ = std::max(latest_ns_, edge.host_ns);
   if (!edge.rising) return;
   if (closed_.count(edge.index)) return;  // duplicate
   SyncRecord& r = open_[edge.index];
@@ -68,6 +69,7 @@ void Associator::add_edge(const devices::TriggerEdge& edge) {
 std::optional<std::uint64_t> Associator::add_frame(const std::string& camera,
                                                    const devices::Frame& frame) {
   ++stats_.frames;
+  latest_ns_ = std::max(latest_ns_, frame.host_ns);
   std::optional<std::uint64_t> index = frame.trigger_index;
   if (!index) {
     // The latest edge at or before the frame, within the latency bound, that this camera has not
@@ -102,12 +104,14 @@ std::optional<std::uint64_t> Associator::add_frame(const std::string& camera,
 }
 
 void Associator::add_wrench(const devices::WrenchSample& s) {
+  latest_ns_ = std::max(latest_ns_, s.host_ns);
   ft_.push_back(Sample{s.host_ns, s.sequence, s.force_n, 0});
   while (ft_.size() > kMaxKeptSamples) ft_.pop_front();
 }
 
 std::optional<std::uint64_t> Associator::add_fsr(const devices::FsrSample& s) {
   ++stats_.fsr_samples;
+  latest_ns_ = std::max(latest_ns_, s.host_ns);
   if (!s.trigger_index) {
     fsr_.push_back(Sample{s.host_ns, s.sequence, {s.force_n, 0, 0}, s.raw});
     while (fsr_.size() > kMaxKeptSamples) fsr_.pop_front();
@@ -189,7 +193,10 @@ void Associator::finish(SyncRecord& r) {
   while (closed_.size() > kMaxClosed) closed_.erase(closed_.begin());
 }
 
-std::vector<SyncRecord> Associator::take_ready(std::int64_t now_ns) {
+std::vector<SyncRecord> Associator::take_ready(std::int64_t clock_ns) {
+  // Deadlines run on the items' own time line: a replay serves recorded host times while its
+  // clock reads something else, and live items never carry a time later than the clock.
+  const std::int64_t now_ns = std::min(clock_ns, latest_ns_);
   std::vector<SyncRecord> out;
   for (auto it = open_.begin(); it != open_.end();) {
     SyncRecord& r = it->second;

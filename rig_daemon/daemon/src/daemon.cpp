@@ -7,7 +7,13 @@ namespace hc::rig {
 
 Result<std::unique_ptr<Daemon>> Daemon::create(Options options) {
   std::unique_ptr<Daemon> d(new Daemon(std::move(options)));
-  HC_ASSIGN_OR_RETURN(d->rig_, Rig::create(Rig::Options{d->options_.config, d->options_.clock}));
+  Rig::Options ro{d->options_.config, d->options_.clock, nullptr};
+  if (!d->options_.replay.empty()) {
+    devices::ReplaySession::Options rso;
+    rso.speed = d->options_.replay_speed;
+    HC_ASSIGN_OR_RETURN(ro.replay, devices::ReplaySession::open(d->options_.replay, rso));
+  }
+  HC_ASSIGN_OR_RETURN(d->rig_, Rig::create(ro));
   std::error_code ec;
   std::filesystem::create_directories(d->options_.config.sessions_dir, ec);
   if (ec)
@@ -122,6 +128,7 @@ Json Daemon::status() const {
          {"version", options_.software_version},
          {"protocol_version", kControlProtocolVersion},
          {"config", options_.config.source_name},
+         {"replay", options_.replay.string()},
          {"sessions_dir", options_.config.sessions_dir.string()},
          {"sessions_started", sessions_started_},
          {"state", running_ ? std::string(to_string(session_->state())) : std::string("idle")}};

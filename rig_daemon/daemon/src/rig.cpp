@@ -2,6 +2,8 @@
 
 #include <optional>
 
+#include "rig_daemon/backends/hardware_backends.h"
+
 namespace hc::rig {
 
 Json stats_json(const devices::DeviceStats& s) {
@@ -13,7 +15,27 @@ Result<std::unique_ptr<Rig>> Rig::create(Options options) {
   std::unique_ptr<Rig> rig(new Rig());
   rig->config_ = std::move(options.config);
   rig->clock_ = options.clock ? options.clock : devices::monotonic_clock();
-  HC_RETURN_IF_ERROR(devices::register_sim_backends(rig->registry_));
+  HC_RETURN_IF_ERROR(devices::register_device_backends(rig->registry_));
+  HC_RETURN_IF_ERROR(register_hardware_backends(rig->registry_));
+  if (options.replay) {
+    rig->replay_ = options.replay;
+    rig->config_.devices.clear();
+    for (const devices::ReplaySession::Stream& s : rig->replay_->streams()) {
+      if (rig->config_.find(s.device) != nullptr) continue;  // one device per name
+      devices::DeviceContext ctx;
+      ctx.name = s.device;
+      ctx.backend = "replay";
+      ctx.clock = rig->clock_;
+      ctx.replay = rig->replay_;
+      HC_ASSIGN_OR_RETURN(std::unique_ptr<devices::Device> d, rig->registry_.create(s.kind, ctx));
+      HC_RETURN_IF_ERROR(devices::configure_from_yaml(*d, "", "replay of " + s.device));
+      rig->config_.devices.push_back(DeviceConfig{s.device, s.kind, "replay"});
+      rig->devices_.push_back(std::move(d));
+    }
+    if (rig->devices_.empty())
+      return invalid_argument("the replayed session has no device streams");
+    return rig;
+  }
   if (!rig->config_.document) return internal_error("rig config has no parsed document");
 
   bool any_sim = false;

@@ -164,6 +164,7 @@ struct Session::Impl {
   void handle_trip(SafetyTrip t);
   void update_progress(bool force_event);
   Status run_hand_held();
+  Status run_replay();
   Status run_automated();
   Status move_to(const dev::ArmPose& pose, double speed);
   Status fire_and_collect(std::vector<std::uint64_t>& indices);
@@ -385,8 +386,13 @@ Status Session::Impl::setup() {
   }
 
   // Start the devices (a device left in error by an earlier session is reset first).
+  // The trigger stays active from its first session on: its edge indices then count from the
+  // daemon's first session, the same numbering hardware-triggered cameras and triggered FSRs use
+  // for Frame/FsrSample::trigger_index (a re-activated simulated trigger would restart at 0 while
+  // the cameras keep counting).
   for (dev::Device* d : used) {
     if (d->state() == dev::DeviceState::kError) HC_RETURN_IF_ERROR(d->reset());
+    if (d == trigger && d->state() == dev::DeviceState::kActive) continue;
     if (d->state() == dev::DeviceState::kActive) HC_RETURN_IF_ERROR(d->deactivate());
     HC_RETURN_IF_ERROR(d->activate());
   }
@@ -817,6 +823,27 @@ Status Session::Impl::run_automated() {
   return {};
 }
 
+Status Session::Impl::run_replay() {
+  // A replay cannot be commanded: record every stream the plan names until the recording ends
+  // (the items keep their recorded times, counters and payloads, so the new session holds the
+  // same messages on these channels).
+  dev::ReplaySession& r = *rig.replay();
+  {
+    std::lock_guard lock(progress_mutex);
+    step_text = "replaying " + std::to_string(double(r.end_ns() - r.start_ns()) * 1e-9) + " s";
+  }
+  bool reached_end = false;
+  const std::int64_t timeout = r.due_clock_ns(r.end_ns()) - clock().now_ns() + 10'000'000'000;
+  return wait_for(
+      [&] {
+        // One more cycle after the last recorded time is due, so its items are read.
+        if (reached_end) return assoc->idle();
+        reached_end = r.recorded_ns_at(clock().now_ns()) >= r.end_ns();
+        return false;
+      },
+      timeout, "the end of the replayed session");
+}
+
 // ---- run / finish -----------------------------------------------------------------------------
 
 Json Session::Impl::finish(Status run_status) {
@@ -829,7 +856,8 @@ Json Session::Impl::finish(Status run_status) {
     ++done;
   }
   if (trigger != nullptr && trigger->state() == dev::DeviceState::kActive) (void)trigger->stop();
-  for (dev::Device* d : used) (void)d->deactivate();
+  for (dev::Device* d : used)
+    if (d != trigger) (void)d->deactivate();
   if (have_truth) rig.world()->set_ground_truth_callback(nullptr);
 
   SessionState final_state = SessionState::kFinished;
@@ -909,7 +937,9 @@ Result<Json> Session::run() {
   }
   state_ = SessionState::kRunning;
   m.update_progress(true);
-  Status s = m.opts.plan.protocol == Protocol::kHandHeld ? m.run_hand_held() : m.run_automated();
+  Status s = m.rig.replay() != nullptr                     ? m.run_replay()
+             : m.opts.plan.protocol == Protocol::kHandHeld ? m.run_hand_held()
+                                                           : m.run_automated();
   Json summary = m.finish(s);
   if (m.opts.on_event) m.opts.on_event("finished", summary);
   return summary;

@@ -15,6 +15,8 @@ namespace hc::rig {
 namespace {
 
 using hc::testing::ScratchDir;
+using testing::Check;
+using testing::check_association;
 using testing::json_of;
 using testing::read_session;
 
@@ -66,66 +68,6 @@ namespace hc::rig {
 namespace {
 
 using devices::sim::Fault;
-
-// Independent of the daemon's associator: from the recorded messages alone, every camera delivers
-// one frame per rising edge, in order, within `max_latency_ns` after its edge; (hand-held) every
-// FSR sample names an edge that exists, one per edge; (automated) every edge has an F/T sample
-// within 1 ms (the bar for trigger-to-sample association error in simulation).
-struct Check {
-  std::size_t edges = 0;
-  std::size_t frames = 0;
-  std::int64_t max_ft_error_ns = 0;
-};
-
-Check check_association(const testing::SessionContents& c, const std::vector<std::string>& cams,
-                        bool hand_held) {
-  Check out;
-  std::vector<std::pair<std::uint64_t, std::int64_t>> edges;  // index, host_ns
-  for (const testing::Msg& m : c.by_topic.at("/trigger/edges")) {
-    const Json j = json_of(m);
-    if (!j["rising"].get<bool>()) continue;
-    edges.emplace_back(j["index"].get<std::uint64_t>(), j["host_ns"].get<std::int64_t>());
-    EXPECT_EQ(m.log_time, j["host_ns"].get<std::uint64_t>());  // log_time = host monotonic ns
-  }
-  out.edges = edges.size();
-  for (const std::string& cam : cams) {
-    const auto& frames = c.by_topic.at(camera_topic(cam));
-    EXPECT_EQ(frames.size(), edges.size()) << cam;
-    for (std::size_t k = 0; k < std::min(frames.size(), edges.size()); ++k) {
-      const std::int64_t dt = static_cast<std::int64_t>(frames[k].log_time) - edges[k].second;
-      // Exposure + readout of a 240-line Basler-like sensor: 240 x 20.52 us + 3.87 ms + exposure
-      // (RIG_PROTOCOL_FACTS.md); 100 ms is far above it and far below the trigger period.
-      EXPECT_GT(dt, 0) << cam << " frame " << k;
-      EXPECT_LT(dt, 100'000'000) << cam << " frame " << k;
-      ++out.frames;
-    }
-  }
-  if (hand_held) {
-    const auto& fsr = c.by_topic.at("/fsr/samples");
-    EXPECT_EQ(fsr.size(), edges.size());
-    for (std::size_t k = 0; k < std::min(fsr.size(), edges.size()); ++k)
-      EXPECT_EQ(json_of(fsr[k])["trigger_index"].get<std::uint64_t>(), edges[k].first);
-  } else {
-    std::vector<std::int64_t> ft;
-    for (const testing::Msg& m : c.by_topic.at("/ft/wrench"))
-      ft.push_back(static_cast<std::int64_t>(m.log_time));
-    std::sort(ft.begin(), ft.end());
-    for (const auto& [index, t] : edges) {
-      auto it = std::lower_bound(ft.begin(), ft.end(), t);
-      std::int64_t best = INT64_MAX;
-      if (it != ft.end()) best = std::min(best, *it - t);
-      if (it != ft.begin()) best = std::min(best, t - *std::prev(it));
-      out.max_ft_error_ns = std::max(out.max_ft_error_ns, best);
-    }
-    EXPECT_LT(out.max_ft_error_ns, 1'000'000);
-  }
-  // The daemon's own sync records agree: one per edge, all complete.
-  const auto& sync = c.by_topic.at(std::string(kSyncTopic));
-  EXPECT_EQ(sync.size(), edges.size());
-  for (const testing::Msg& m : sync)
-    EXPECT_TRUE(json_of(m)["complete"].get<bool>()) << json_of(m).dump();
-  return out;
-}
 
 TEST(Session, HandHeldFileAssociatesIndependently) {
   ScratchDir dir;
@@ -318,6 +260,72 @@ TEST(Session, UnknownDevicesAndBusyDaemonAreClearErrors) {
   EXPECT_NE(r.status().message().find("device 'ft' is a force_torque, not a camera"),
             std::string::npos);
   EXPECT_FALSE(d->pause().ok());  // nothing running
+}
+
+}  // namespace
+}  // namespace hc::rig
+
+namespace hc::rig {
+namespace {
+
+TEST(Session, SecondSessionOnOneDaemonAssociatesToo) {
+  // Device counters (trigger edge indices, frame trigger indices) must stay consistent across
+  // sessions of one daemon.
+  hc::testing::ScratchDir dir;
+  auto d = make_daemon(dir.path());
+  Result<Plan> plan = load_plan(example("hand_held_face.yaml"));
+  ASSERT_TRUE(plan.ok());
+  for (int i = 0; i < 2; ++i) {
+    Json s = run_plan(*d, *plan);
+    ASSERT_EQ(s["state"], "finished") << s.dump(2);
+    EXPECT_EQ(s["association"]["edges_complete"], 20) << i << s["association"].dump();
+    const testing::SessionContents c = read_session(s["session"].get<std::string>());
+    EXPECT_EQ(check_association(c, plan->hand_held.cameras, true).edges, 20u);
+  }
+}
+
+}  // namespace
+}  // namespace hc::rig
+
+namespace hc::rig {
+namespace {
+
+TEST(Replay, ReRecordingAReplayReproducesTheMessages) {
+  hc::testing::ScratchDir dir;
+  Result<Plan> plan = load_plan(example("hand_held_face.yaml"));
+  ASSERT_TRUE(plan.ok());
+  auto live = make_daemon(dir / "live");
+  const std::string original = run_plan(*live, *plan)["session"].get<std::string>();
+
+  // rigd --replay ORIGINAL: the same device interfaces, served from the file.
+  Result<RigConfig> cfg = embedded_default_rig_config();
+  ASSERT_TRUE(cfg.ok());
+  cfg->sessions_dir = dir / "replayed";
+  Daemon::Options o;
+  o.config = *cfg;
+  o.clock = std::make_shared<devices::SimulatedClock>(5'000'000'000);
+  o.replay = original;
+  Result<std::unique_ptr<Daemon>> replay = Daemon::create(o);
+  ASSERT_TRUE(replay.ok()) << replay.status().to_string();
+  EXPECT_EQ((*replay)->devices().size(), 5u);  // the streams the hand-held session recorded
+  Json s = run_plan(**replay, *plan);
+  ASSERT_EQ(s["state"], "finished") << s.dump(2);
+  EXPECT_EQ(s["association"]["edges_complete"], 20) << s["association"].dump();
+
+  const testing::SessionContents a = read_session(original);
+  const testing::SessionContents b = read_session(s["session"].get<std::string>());
+  for (const char* topic :
+       {"/trigger/edges", "/cam0/image", "/cam1/image", "/cam2/image", "/fsr/samples"}) {
+    const auto& ma = a.by_topic.at(topic);
+    const auto& mb = b.by_topic.at(topic);
+    ASSERT_EQ(ma.size(), mb.size()) << topic;
+    for (std::size_t i = 0; i < ma.size(); ++i) {
+      EXPECT_EQ(ma[i].log_time, mb[i].log_time) << topic << " " << i;
+      EXPECT_EQ(ma[i].publish_time, mb[i].publish_time) << topic << " " << i;
+      EXPECT_EQ(ma[i].sequence, mb[i].sequence) << topic << " " << i;
+      EXPECT_EQ(ma[i].data, mb[i].data) << topic << " " << i;
+    }
+  }
 }
 
 }  // namespace

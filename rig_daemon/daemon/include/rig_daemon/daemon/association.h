@@ -77,8 +77,9 @@ class Associator {
   void add_wrench(const devices::WrenchSample& sample);
   std::optional<std::uint64_t> add_fsr(const devices::FsrSample& sample);
 
-  // Records of edges that are complete, or past their deadline at now_ns, in edge order.
-  std::vector<SyncRecord> take_ready(std::int64_t now_ns);
+  // Records of edges that are complete, or past their deadline, in edge order. Deadlines count
+  // on the items' time line: min(clock_ns, latest host_ns added).
+  std::vector<SyncRecord> take_ready(std::int64_t clock_ns);
   // Every open record (end of session), complete or not.
   std::vector<SyncRecord> take_all();
   // True when no edge is waiting.
@@ -106,6 +107,7 @@ class Associator {
   std::deque<Sample> fsr_;  // recent untriggered FSR samples (bounded)
   AssociationStats stats_;
   double ft_error_sum_ns_ = 0.0;
+  std::int64_t latest_ns_ = INT64_MIN;  // the latest host_ns of anything added
 };
 
 }  // namespace hc::rig

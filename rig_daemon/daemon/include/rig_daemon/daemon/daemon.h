@@ -25,6 +25,9 @@ class Daemon {
   struct Options {
     RigConfig config;
     std::shared_ptr<devices::Clock> clock;  // null: host monotonic clock
+    // Serve this recorded session's streams instead of the config's devices.
+    std::filesystem::path replay;
+    double replay_speed = 1.0;
     std::string software_version = "unknown";
     // Events (progress, safety, finished) for subscribers; called from the session thread.
     std::function<void(std::string_view event, const Json& fields)> on_event;

@@ -1,5 +1,6 @@
 // The rig: every device of a rig config created through the backend registry, configured from
-// its map in the config, sharing one clock and (for simulated devices) one simulated world.
+// its map in the config, sharing one clock and (for simulated devices) one simulated world; or,
+// for a replay, every device stream of a recorded session.
 #pragma once
 
 #include <filesystem>
@@ -17,6 +18,7 @@
 #include "rig_daemon/devices/force_torque.h"
 #include "rig_daemon/devices/fsr.h"
 #include "rig_daemon/devices/registry.h"
+#include "rig_daemon/devices/replay.h"
 #include "rig_daemon/devices/sim_world.h"
 #include "rig_daemon/devices/trigger.h"
 
@@ -29,6 +31,9 @@ class Rig {
     // Host time for every device; null: the host's monotonic clock. A SimulatedClock in
     // auto-advance mode runs a simulated rig as fast as the CPU allows, deterministically.
     std::shared_ptr<devices::Clock> clock;
+    // Replay: the rig's devices are the session's recorded streams ("replay" backends, same
+    // names and kinds); the config's devices are ignored, its limits and paths kept.
+    std::shared_ptr<devices::ReplaySession> replay;
   };
   // Creates and configures every device (inactive). Errors name the device and the config key.
   static Result<std::unique_ptr<Rig>> create(Options options);
@@ -39,6 +44,8 @@ class Rig {
   std::shared_ptr<devices::Clock> clock_ptr() const { return clock_; }
   // The simulated world, or null when no device is simulated.
   devices::sim::World* world() const { return world_.get(); }
+  // The session being replayed, or null.
+  devices::ReplaySession* replay() const { return replay_.get(); }
 
   devices::Device* find(std::string_view name) const;
   template <typename D>
@@ -55,6 +62,7 @@ class Rig {
   RigConfig config_;
   std::shared_ptr<devices::Clock> clock_;
   std::shared_ptr<devices::sim::World> world_;
+  std::shared_ptr<devices::ReplaySession> replay_;
   devices::BackendRegistry registry_;
   std::vector<std::unique_ptr<devices::Device>> devices_;
 };

@@ -1,0 +1,220 @@
+// End to end, as a technician runs it: the rigd executable on its embedded default (real time,
+// every device simulated) driven by the rigctl executable; every shipped example plan yields a
+// session whose frames, trigger edges and force samples all associate (100 %), read back with the
+// recording library's reader. Then the crash test: kill -9 of rigd mid-capture, `hardcopy session
+// recover` keeps all but at most the last chunk and `hardcopy session verify` passes.
+#include <gtest/gtest.h>
+#include <signal.h>
+#include <sys/stat.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <array>
+#include <chrono>
+#include <cstdio>
+#include <fstream>
+#include <string>
+#include <thread>
+
+#include "common/json.h"
+#include "rig_daemon/daemon/plan.h"
+#include "rig_daemon/recording/mcap_reader.h"
+#include "session_support.h"
+#include "test_data.h"
+
+namespace hc::rig {
+namespace {
+
+using hc::testing::bin_dir;
+using hc::testing::ScratchDir;
+using hc::testing::source_dir;
+
+struct CmdResult {
+  int exit_code = -1;
+  std::string out;
+};
+
+// Runs a shell command; stdout (and stderr unless `drop_stderr`) is captured.
+CmdResult run(const std::string& cmd, bool drop_stderr = false) {
+  CmdResult r;
+  FILE* p = ::popen((cmd + (drop_stderr ? " 2>/dev/null" : " 2>&1")).c_str(), "r");
+  if (p == nullptr) return r;
+  std::array<char, 4096> buf{};
+  std::size_t n;
+  while ((n = std::fread(buf.data(), 1, buf.size(), p)) > 0) r.out.append(buf.data(), n);
+  const int status = ::pclose(p);
+  r.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  return r;
+}
+
+// Output of a command that prints JSON on stdout (stderr dropped).
+CmdResult run_json(const std::string& cmd) { return run(cmd, true); }
+
+std::string example(const std::string& name) {
+  return (source_dir() / "rig_daemon/examples" / name).string();
+}
+
+// rigd as a child process, killed (SIGKILL) on destruction if still running.
+class Rigd {
+ public:
+  explicit Rigd(const std::filesystem::path& dir) : socket_(dir / "rigd.sock") {
+    pid_ = ::fork();
+    if (pid_ == 0) {
+      const std::string log = (dir / "rigd.log").string();
+      if (std::freopen(log.c_str(), "w", stderr) == nullptr) ::_exit(126);
+      const std::string rigd = (bin_dir() / "rigd").string();
+      const std::string sessions = (dir / "sessions").string();
+      const std::string sock = socket_.string();
+      ::execl(rigd.c_str(), rigd.c_str(), "--sessions-dir", sessions.c_str(), "--socket",
+              sock.c_str(), static_cast<char*>(nullptr));
+      ::_exit(127);
+    }
+    for (int i = 0; i < 200 && !std::filesystem::exists(socket_); ++i)
+      std::this_thread::sleep_for(std::chrono::milliseconds(25));
+  }
+  ~Rigd() {
+    if (pid_ > 0) {
+      ::kill(pid_, SIGKILL);
+      ::waitpid(pid_, nullptr, 0);
+    }
+  }
+  // Waits for the process to exit; its exit code (-1 if killed by a signal).
+  int wait() {
+    int status = 0;
+    ::waitpid(pid_, &status, 0);
+    pid_ = -1;
+    return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  }
+  void kill9() {
+    ::kill(pid_, SIGKILL);
+    ::waitpid(pid_, nullptr, 0);
+    pid_ = -1;
+  }
+  const std::filesystem::path& socket() const { return socket_; }
+  std::string rigctl(const std::string& args) const {
+    return (bin_dir() / "rigctl").string() + " --socket " + socket_.string() + " " + args;
+  }
+
+ private:
+  std::filesystem::path socket_;
+  pid_t pid_ = -1;
+};
+
+TEST(Rigd, EveryExamplePlanAssociatesFully) {
+  ScratchDir dir;
+  Rigd rigd(dir.path());
+  ASSERT_TRUE(std::filesystem::exists(rigd.socket())) << "rigd did not start";
+
+  // The control socket is owner-only.
+  struct stat st {};
+  ASSERT_EQ(::stat(rigd.socket().c_str(), &st), 0);
+  EXPECT_TRUE(S_ISSOCK(st.st_mode));
+  EXPECT_EQ(st.st_mode & 0777, 0600u);
+
+  CmdResult devices = run_json(rigd.rigctl("devices --json"));
+  ASSERT_EQ(devices.exit_code, 0) << devices.out;
+  Result<Json> dj = parse_json(devices.out, "devices");
+  ASSERT_TRUE(dj.ok()) << devices.out;
+  EXPECT_EQ((*dj)["devices"].size(), 11u);  // 7 cameras, trigger, FSR, F/T, arm
+
+  const struct {
+    const char* plan;
+    std::size_t edges;
+  } plans[] = {{"hand_held_face.yaml", 20}, {"automated_block.yaml", 120}};
+  for (const auto& p : plans) {
+    CmdResult r = run_json(rigd.rigctl("start --wait --json " + example(p.plan)));
+    ASSERT_EQ(r.exit_code, 0) << p.plan << ": " << r.out;
+    Result<Json> summary = parse_json(r.out, "summary");
+    ASSERT_TRUE(summary.ok()) << r.out;
+    const Json& s = *summary;
+    EXPECT_EQ(s["state"], "finished") << s.dump(2);
+    const Json& a = s["association"];
+    EXPECT_EQ(a["edges"], p.edges) << a.dump();
+    EXPECT_EQ(a["edges_complete"], p.edges) << a.dump();
+    EXPECT_EQ(a["frames_associated"], a["frames"]) << a.dump();
+    EXPECT_DOUBLE_EQ(a["frame_association"].get<double>(), 1.0);
+    EXPECT_DOUBLE_EQ(a["edge_completeness"].get<double>(), 1.0);
+
+    Result<Plan> plan = load_plan(example(p.plan));
+    ASSERT_TRUE(plan.ok());
+    const bool hand_held = plan->protocol == Protocol::kHandHeld;
+    const testing::SessionContents c = testing::read_session(s["session"].get<std::string>());
+    const testing::Check k = testing::check_association(
+        c, hand_held ? plan->hand_held.cameras : plan->automated.cameras, hand_held);
+    EXPECT_EQ(k.edges, p.edges);
+  }
+
+  CmdResult status = run_json(rigd.rigctl("status --json"));
+  ASSERT_EQ(status.exit_code, 0);
+  EXPECT_NE(status.out.find("\"sessions_started\": 2"), std::string::npos) << status.out;
+
+  // Bad input: a bad plan names its file and line (exit 2); stop with nothing running is a "no".
+  const std::filesystem::path bad = dir / "bad.yaml";
+  std::ofstream(bad) << "protocol: automated\nsteps: 500\n";
+  CmdResult b = run(rigd.rigctl("start " + bad.string()));
+  EXPECT_EQ(b.exit_code, 2) << b.out;
+  EXPECT_NE(b.out.find(bad.string() + ":2: steps: expected an integer in [30, 200]"),
+            std::string::npos)
+      << b.out;
+  EXPECT_EQ(run(rigd.rigctl("stop")).exit_code, 1);
+  EXPECT_EQ(run(rigd.rigctl("estop")).exit_code, 0);  // estop always works
+
+  EXPECT_EQ(run(rigd.rigctl("shutdown")).exit_code, 0);
+  EXPECT_EQ(rigd.wait(), 0);
+  EXPECT_FALSE(std::filesystem::exists(rigd.socket()));
+  EXPECT_NE(run(rigd.rigctl("status")).exit_code, 0);  // nobody listening
+}
+
+TEST(Rigd, KillNineMidCaptureThenRecoverAndVerify) {
+  ScratchDir dir;
+  Rigd rigd(dir.path());
+  ASSERT_TRUE(std::filesystem::exists(rigd.socket()));
+  CmdResult r = run_json(rigd.rigctl("start --json " + example("automated_block.yaml")));
+  ASSERT_EQ(r.exit_code, 0) << r.out;
+  Result<Json> started = parse_json(r.out, "start");
+  ASSERT_TRUE(started.ok());
+  const std::filesystem::path session = (*started)["session"].get<std::string>();
+  // Wait until several 1 MiB chunks are on disk, then kill without warning.
+  for (int i = 0; i < 600; ++i) {
+    std::error_code ec;
+    if (std::filesystem::file_size(session, ec) > (3u << 20)) break;
+    std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  }
+  rigd.kill9();
+  const std::uint64_t cut_size = std::filesystem::file_size(session);
+  ASSERT_GT(cut_size, 3u << 20);
+
+  // The cut file is not a valid MCAP (no summary, no footer): verify says no.
+  const std::string hc = (bin_dir() / "hardcopy").string();
+  EXPECT_EQ(run(hc + " session verify " + session.string()).exit_code, 1);
+
+  // Count the complete chunks in the cut file: all but at most the last must survive.
+  std::uint64_t chunks_in_cut = 0;
+  Result<recording::LinearScanResult> scan =
+      recording::scan_records(session, [&](const recording::LinearRecord& rec) {
+        if (rec.opcode == static_cast<std::uint8_t>(recording::Opcode::kChunk)) ++chunks_in_cut;
+        return Status{};
+      });
+  ASSERT_TRUE(scan.ok());
+  EXPECT_TRUE(scan->truncated || !scan->reached_footer);
+
+  const std::filesystem::path out = dir / "recovered.mcap";
+  CmdResult rec =
+      run_json(hc + " session recover --json " + session.string() + " -o " + out.string());
+  ASSERT_EQ(rec.exit_code, 0) << rec.out;
+  Result<Json> report = parse_json(rec.out, "recover");
+  ASSERT_TRUE(report.ok()) << rec.out;
+  EXPECT_GE((*report)["chunks_kept"].get<std::uint64_t>() + 1, chunks_in_cut) << rec.out;
+  EXPECT_GE((*report)["chunks_kept"].get<std::uint64_t>(), 3u) << rec.out;
+  EXPECT_EQ(run(hc + " session verify " + out.string()).exit_code, 0);
+
+  // The recovered file reads, and its sessions' streams are there.
+  const testing::SessionContents c = testing::read_session(out);
+  EXPECT_GT(c.by_topic.count("/ft/wrench"), 0u);
+  EXPECT_GT(c.by_topic.count("/cam0/image"), 0u);
+  EXPECT_TRUE(c.metadata.count("rig_config"));
+  EXPECT_TRUE(c.metadata.count("plan"));
+}
+
+}  // namespace
+}  // namespace hc::rig
