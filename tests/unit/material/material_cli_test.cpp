@@ -1,0 +1,85 @@
+// `hardcopy synth | fit heterogeneous | evaluate` as a user runs them: exit codes 0 / 2, --json
+// keys, no output file on failure.
+#include <gtest/gtest.h>
+#include <sys/wait.h>
+
+#include <array>
+#include <cstdio>
+#include <fstream>
+#include <nlohmann/json.hpp>
+#include <string>
+
+#include "test_data.h"
+
+namespace hc::material {
+namespace {
+
+struct CliRun {
+  int exit_code = -1;
+  std::string out;
+};
+
+CliRun hardcopy(const std::string& args) {
+  const std::string cmd =
+      (hc::testing::bin_dir() / "hardcopy").string() + " --quiet " + args + " 2>/dev/null";
+  CliRun r;
+  FILE* p = ::popen(cmd.c_str(), "r");
+  if (p == nullptr) return r;
+  std::array<char, 4096> buf{};
+  std::size_t n;
+  while ((n = std::fread(buf.data(), 1, buf.size(), p)) > 0) r.out.append(buf.data(), n);
+  const int status = ::pclose(p);
+  r.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  return r;
+}
+
+TEST(MaterialCli, SynthFitEvaluateRoundTrip) {
+  hc::testing::ScratchDir dir;
+  std::ofstream(dir / "scene.json")
+      << R"({"specimen": {"box_m": [0.04, 0.04, 0.02], "cells": [4, 4, 2]},
+    "material": {"neo_hookean": {"youngs_pa": 60000, "poisson": 0.3}}, "fixed": "bottom",
+    "probe": {"shape": "sphere", "radius_m": 0.01, "position_m": [0.02, 0.02, 0.03],
+              "direction": [0, 0, -1]},
+    "load": {"force_n": 2.0}, "steps": 3})";
+  const std::string d = dir.path().string();
+  CliRun s = hardcopy("synth " + d + "/scene.json --examples 3 --noise 0 --seed 3 -o " + d +
+                      "/s.json --json");
+  ASSERT_EQ(s.exit_code, 0) << s.out;
+  EXPECT_EQ(nlohmann::json::parse(s.out)["tets"], 192);  // 4 x 4 x 2 cubes x 6 tets
+  CliRun f = hardcopy("fit heterogeneous --samples " + d + "/s.json -o " + d +
+                      "/m.json --regularization 1e-6 --json");
+  ASSERT_EQ(f.exit_code, 0) << f.out;
+  const auto fj = nlohmann::json::parse(f.out);
+  for (const char* key : {"rms_error_m", "max_error_m", "mean_basis_size", "time_s"})
+    EXPECT_TRUE(fj.contains(key)) << key;
+  CliRun e = hardcopy("evaluate --material " + d + "/m.json --samples " + d + "/s.json --json");
+  ASSERT_EQ(e.exit_code, 0) << e.out;
+  const auto ej = nlohmann::json::parse(e.out);
+  for (const char* key : {"rms_error_m", "max_error_m", "error_rel_max_disp"})
+    EXPECT_TRUE(ej.contains(key)) << key;
+  // Noise-free examples of a neo-Hookean block: reproduced within 1 % of the max displacement.
+  EXPECT_LT(ej["error_rel_max_disp"].get<double>(), 0.01);
+}
+
+TEST(MaterialCli, BadInputExitsTwoAndWritesNothing) {
+  hc::testing::ScratchDir dir;
+  const std::string d = dir.path().string();
+  std::ofstream(dir / "bad.json") << R"({"format": "hardcopy.samples", "version": 9})";
+  EXPECT_EQ(
+      hardcopy("fit heterogeneous --samples " + d + "/bad.json -o " + d + "/m.json").exit_code, 2);
+  EXPECT_FALSE(std::filesystem::exists(dir / "m.json"));
+  EXPECT_EQ(
+      hardcopy("evaluate --material " + d + "/none.json --samples " + d + "/bad.json").exit_code,
+      2);
+  std::ofstream(dir / "scene.json")
+      << R"({"specimen": {"box_m": [0.04, 0.04, 0.02], "cells": [2, 2, 1]},
+    "material": {"neo_hookean": {"youngs_pa": 60000, "poisson": 0.3}}, "fixed": "bottom",
+    "probe": {"shape": "sphere", "radius_m": 0.01, "position_m": [0.02, 0.02, 0.03],
+              "direction": [0, 0, -1]}, "load": {"depth_m": 0.001}})";
+  EXPECT_EQ(hardcopy("synth " + d + "/scene.json -o " + d + "/s.json").exit_code, 2);
+  EXPECT_FALSE(std::filesystem::exists(dir / "s.json"));
+  EXPECT_EQ(hardcopy("synth " + d + "/scene.json -o " + d + "/s.json --examples 0").exit_code, 2);
+}
+
+}  // namespace
+}  // namespace hc::material
