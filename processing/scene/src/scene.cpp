@@ -387,8 +387,7 @@ Result<SimulationResult> run_neo_hookean(const Scene& scene, const TetMesh& mesh
       std::unique_ptr<hyperelastic::RigidProbe> rp,
       hyperelastic::make_fem_probe_contact(*start, fem::ContactOptions{}.penalty_scale * diag));
   hyperelastic::Boundary boundary;
-  boundary.fixed_nodes = fixed;
-  boundary.contacts.push_back(rp.get());
+  boundary.fixed_nodes = fixed;  // indent() adds the probe's contact itself (not here: twice = 2k)
   hyperelastic::IndentOptions options;
   options.steps = scene.steps;
   options.force_control = scene.load.control == fem::LoadControl::kForce;

@@ -135,6 +135,25 @@ TEST(Simulate, LinearSphereIndentationAndLayers) {
   EXPECT_GT(layered->force_n, 1.5 * r->force_n);
 }
 
+// A flat punch wider than the block compresses it uniformly. With ν = 0 and the bottom fixed the
+// strain is uniaxial, so the force is F = E·A·d/H exactly (Hooke's law) for the linear model and,
+// at 1 % strain, within ~1 % for the neo-Hookean one (small-strain limit). This caught the
+// reference model's probe being counted twice (half the force).
+TEST(Simulate, FlatPunchOverTheWholeTopMatchesHookesLawForBothModels) {
+  constexpr double kE = 1e5, kA = 0.04 * 0.04, kH = 0.02, kD = 2e-4;
+  const double expected = kE * kA * kD / kH;  // 0.8 N
+  for (const char* model : {"linear", "neo_hookean"}) {
+    auto j = base();
+    j["material"] = {{model, {{"youngs_pa", kE}, {"poisson", 0.0}}}};
+    j["probe"] = {{"shape", "flat"}, {"radius_m", 0.1}, {"position_m", {0.02, 0.02, 0.03}},
+                  {"direction", {0, 0, -1}}};
+    j["load"] = {{"depth_m", kD}};
+    auto r = simulate(*parse(j));
+    ASSERT_TRUE(r.ok()) << model << ": " << r.status().to_string();
+    EXPECT_NEAR(r->force_n, expected, 0.015 * expected) << model;
+  }
+}
+
 TEST(Simulate, BadScenesFailClearly) {
   auto j = base();
   j["probe"]["position_m"] = {0.5, 0.5, 0.035};  // misses the block
