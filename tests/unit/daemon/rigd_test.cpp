@@ -174,15 +174,16 @@ TEST(Rigd, KillNineMidCaptureThenRecoverAndVerify) {
   Result<Json> started = parse_json(r.out, "start");
   ASSERT_TRUE(started.ok());
   const std::filesystem::path session = (*started)["session"].get<std::string>();
-  // Wait until several 1 MiB chunks are on disk, then kill without warning.
+  // Wait until about a third of the session (~3.2 MB compressed) is on disk, then kill
+  // without warning.
   for (int i = 0; i < 600; ++i) {
     std::error_code ec;
-    if (std::filesystem::file_size(session, ec) > (3u << 20)) break;
+    if (std::filesystem::file_size(session, ec) > (1u << 20)) break;
     std::this_thread::sleep_for(std::chrono::milliseconds(50));
   }
   rigd.kill9();
   const std::uint64_t cut_size = std::filesystem::file_size(session);
-  ASSERT_GT(cut_size, 3u << 20);
+  ASSERT_GT(cut_size, 1u << 20);
 
   // The cut file is not a valid MCAP (no summary, no footer): verify says no.
   const std::string hc = (bin_dir() / "hardcopy").string();
