@@ -225,8 +225,8 @@ TEST(ModbusArmServer, JsmodbusPeerHomesAndStopsTheArm) {
   so.home_speed_m_s = 1.0;
   auto server = ModbusArmServer::start(so);
   ASSERT_TRUE(server.ok());
-  const std::string cmd = "node " + (interop / "modbus_arm_jsmodbus.cjs").string() + " " +
-                          std::to_string((*server)->port()) + " 2>&1";
+  const std::string cmd = "timeout -k 5 60 node " + (interop / "modbus_arm_jsmodbus.cjs").string() +
+                          " " + std::to_string((*server)->port()) + " 2>&1";
   FILE* p = ::popen(cmd.c_str(), "r");
   ASSERT_NE(p, nullptr);
   std::string text;
