@@ -9,29 +9,14 @@
 #include <nlohmann/json.hpp>
 #include <string>
 
+#include "cli_run.h"
 #include "test_data.h"
 
 namespace hc::material {
 namespace {
 
-struct CliRun {
-  int exit_code = -1;
-  std::string out;
-};
-
-CliRun hardcopy(const std::string& args) {
-  const std::string cmd =
-      (hc::testing::bin_dir() / "hardcopy").string() + " --quiet " + args + " 2>/dev/null";
-  CliRun r;
-  FILE* p = ::popen(cmd.c_str(), "r");
-  if (p == nullptr) return r;
-  std::array<char, 4096> buf{};
-  std::size_t n;
-  while ((n = std::fread(buf.data(), 1, buf.size(), p)) > 0) r.out.append(buf.data(), n);
-  const int status = ::pclose(p);
-  r.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-  return r;
-}
+using hc::testing::CliRun;
+using hc::testing::hardcopy;
 
 TEST(MaterialCli, SynthFitEvaluateRoundTrip) {
   hc::testing::ScratchDir dir;

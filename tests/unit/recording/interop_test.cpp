@@ -10,6 +10,7 @@
 #include <cstdio>
 #include <cstdlib>
 
+#include "cli_run.h"
 #include "common/json.h"
 #include "rig_daemon/recording/foxglove_image.h"
 #include "rig_daemon/recording/mcap_writer.h"
@@ -23,21 +24,8 @@ const std::filesystem::path kInterop = HARDCOPY_INTEROP_DIR;
 
 bool have_node() { return std::system("node --version >/dev/null 2>&1") == 0; }
 
-struct ProcResult {
-  int exit_code = -1;
-  std::string out;
-};
-ProcResult run(const std::string& cmd) {
-  ProcResult r;
-  FILE* p = ::popen((cmd + " 2>&1").c_str(), "r");
-  if (p == nullptr) return r;
-  std::array<char, 4096> buf{};
-  std::size_t n;
-  while ((n = std::fread(buf.data(), 1, buf.size(), p)) > 0) r.out.append(buf.data(), n);
-  const int status = ::pclose(p);
-  r.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-  return r;
-}
+// The peer's stdout and stderr together.
+hc::testing::CliRun run(const std::string& cmd) { return hc::testing::run_command(cmd + " 2>&1"); }
 
 struct Expected {
   std::map<std::string, int> counts;
@@ -118,7 +106,7 @@ TEST_P(NpmReader, ReadsOurSessionsWithSameCounts) {
   // forever after loading its decompressors; a hang of the peer is retried once, then fails.
   const std::string cmd =
       "timeout -k 5 60 node " + (kInterop / "read_mcap.mjs").string() + " " + path.string();
-  ProcResult r = run(cmd);
+  hc::testing::CliRun r = run(cmd);
   if (r.exit_code == 124) r = run(cmd);
   ASSERT_EQ(r.exit_code, 0) << r.out;
   auto j = parse_json(r.out, "read_mcap.mjs output");

@@ -8,6 +8,7 @@
 #include <fstream>
 #include <iterator>
 
+#include "cli_run.h"
 #include "common/json.h"
 #include "rig_daemon/recording/mcap_writer.h"
 #include "rig_daemon/recording/session_conventions.h"
@@ -16,24 +17,8 @@
 namespace hc::recording {
 namespace {
 
-struct CliRun {
-  int exit_code = -1;
-  std::string out;
-};
-
-CliRun hardcopy(const std::string& args) {
-  const std::string cmd =
-      (testing::bin_dir() / "hardcopy").string() + " --quiet " + args + " 2>/dev/null";
-  CliRun r;
-  FILE* p = ::popen(cmd.c_str(), "r");
-  if (p == nullptr) return r;
-  std::array<char, 4096> buf{};
-  std::size_t n;
-  while ((n = std::fread(buf.data(), 1, buf.size(), p)) > 0) r.out.append(buf.data(), n);
-  const int status = ::pclose(p);
-  r.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-  return r;
-}
+using hc::testing::CliRun;
+using hc::testing::hardcopy;
 
 void make_session(const std::filesystem::path& path) {
   McapWriter::Options opt;
