@@ -3,6 +3,7 @@
 #include <fmt/format.h>
 #include <yaml-cpp/eventhandler.h>
 #include <yaml-cpp/yaml.h>
+#include <cstdint>
 
 #include <algorithm>
 #include <charconv>
@@ -364,7 +365,49 @@ std::optional<std::int64_t> parse_int(std::string_view text) {
 
 const std::string& Config::name() const { return doc_->name; }
 
+// Offset of the first byte that is not part of well-formed UTF-8 (RFC 3629: no overlongs, no
+// surrogates, at most U+10FFFF), or npos. YAML streams are Unicode text (YAML 1.2 §5.2), and every
+// string read from a config may end up in JSON (session metadata), which must be UTF-8.
+namespace {
+std::size_t first_invalid_utf8(std::string_view s) {
+  std::size_t i = 0;
+  while (i < s.size()) {
+    const auto c = static_cast<unsigned char>(s[i]);
+    std::size_t len = 0;
+    std::uint32_t cp = 0;
+    if (c < 0x80) {
+      ++i;
+      continue;
+    } else if ((c & 0xE0) == 0xC0) {
+      len = 2, cp = c & 0x1F;
+    } else if ((c & 0xF0) == 0xE0) {
+      len = 3, cp = c & 0x0F;
+    } else if ((c & 0xF8) == 0xF0) {
+      len = 4, cp = c & 0x07;
+    } else {
+      return i;
+    }
+    if (i + len > s.size()) return i;
+    for (std::size_t k = 1; k < len; ++k) {
+      const auto cc = static_cast<unsigned char>(s[i + k]);
+      if ((cc & 0xC0) != 0x80) return i;
+      cp = (cp << 6) | (cc & 0x3F);
+    }
+    static constexpr std::uint32_t kMin[5] = {0, 0, 0x80, 0x800, 0x10000};
+    if (cp < kMin[len] || cp > 0x10FFFF || (cp >= 0xD800 && cp <= 0xDFFF)) return i;
+    i += len;
+  }
+  return std::string_view::npos;
+}
+}  // namespace
+
 Result<Config> parse_config(std::string_view text, std::string_view name) {
+  if (const std::size_t bad = first_invalid_utf8(text); bad != std::string_view::npos) {
+    const auto line =
+        static_cast<std::size_t>(std::count(text.begin(), text.begin() + bad, '\n')) + 1;
+    return parse_error(std::string(name), line,
+                       fmt::format("not UTF-8 text (byte offset {})", bad));
+  }
   YAML::Node root;
   try {
     HC_RETURN_IF_ERROR(check_single_document(text, name));

@@ -1,6 +1,7 @@
 #include "rig_daemon/daemon/association.h"
 
 #include <algorithm>
+#include <limits>
 
 namespace hc::rig {
 namespace {
@@ -219,8 +220,12 @@ std::vector<SyncRecord> Associator::take_ready(std::int64_t clock_ns) {
     it = open_.erase(it);
   }
   // Forget samples no open edge can need any more.
+  // An open record whose edge has not arrived holds the lowest int64 as its time: saturate.
+  const std::int64_t base = open_.empty() ? now_ns : open_.begin()->second.edge_host_ns;
   const std::int64_t keep_from =
-      (open_.empty() ? now_ns : open_.begin()->second.edge_host_ns) - options_.max_sample_error_ns;
+      base < std::numeric_limits<std::int64_t>::min() + options_.max_sample_error_ns
+          ? std::numeric_limits<std::int64_t>::min()
+          : base - options_.max_sample_error_ns;
   while (!ft_.empty() && ft_.front().host_ns < keep_from && ft_.size() > 2) ft_.pop_front();
   while (!fsr_.empty() && fsr_.front().host_ns < keep_from && fsr_.size() > 2) fsr_.pop_front();
   return out;

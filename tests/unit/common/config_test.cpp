@@ -517,3 +517,26 @@ TEST(Bounds, ContainsAndDescribe) {
 
 }  // namespace
 }  // namespace hc
+
+namespace hc {
+namespace {
+
+// YAML streams are Unicode (YAML 1.2 §5.2); config strings end up in JSON session metadata, which
+// must be UTF-8. Invalid sequences from RFC 3629 §3 / the Markus Kuhn UTF-8 decoder test file.
+TEST(Config, RejectsTextThatIsNotUtf8WithItsLine) {
+  EXPECT_TRUE(
+      parse_config("name: \"caf\xC3\xA9 \xE2\x82\xAC \xF0\x9F\x98\x80\"\n", "ok.yaml").ok());
+  for (const std::string& bad :
+       {std::string("a: 1\nname: \xFF\n"), std::string("a: 1\nb: \xC0\xAF\n"),
+        std::string("a: 1\nb: \xED\xA0\x80\n"), std::string("a: 1\nb: \xE2\x82\n"),
+        std::string("a: 1\nb: \xF4\x90\x80\x80\n")}) {
+    const auto r = parse_config(bad, "plan.yaml");
+    ASSERT_FALSE(r.ok());
+    EXPECT_EQ(r.status().code(), StatusCode::kInvalidArgument);
+    EXPECT_NE(r.status().message().find("plan.yaml:2"), std::string::npos) << r.status().message();
+    EXPECT_NE(r.status().message().find("not UTF-8"), std::string::npos);
+  }
+}
+
+}  // namespace
+}  // namespace hc
