@@ -110,6 +110,7 @@ class ReplayCursor {
     const std::int64_t from = std::max<std::int64_t>(0, next_ns_);
     std::size_t seen_at_next = 0;
     std::size_t taken = 0;
+    std::size_t limit = kMaxBatch * 16;  // items one read may take
     Status decode_status;
     const std::int64_t to =
         std::max(recorded_now + 1, from + std::max<std::int64_t>(1, prefetch_ns_));
@@ -132,35 +133,16 @@ class ReplayCursor {
         next_ns_ = m.log_time_ns;
         skip_ = 1;
       }
-      return ++taken < kMaxBatch * 16;
+      return ++taken < limit;
     };
     HC_RETURN_IF_ERROR(binding_->session->read(*binding_->stream, from, to, visit));
     HC_RETURN_IF_ERROR(decode_status);
     if (pending_.empty() && to != kForever) {
       // Nothing due yet: look one item ahead so the reader knows how long to wait.
       seen_at_next = 0;
-      HC_RETURN_IF_ERROR(
-          binding_->session->read(*binding_->stream, from, kForever, [&](const auto& m) {
-            if (m.log_time_ns < next_ns_) return true;
-            if (m.log_time_ns == next_ns_ && seen_at_next < skip_) {
-              ++seen_at_next;
-              return true;
-            }
-            Result<Item> item = decode<Item>(m);
-            if (!item.ok()) {
-              decode_status = item.status().with_context(binding_->stream->topic);
-              return false;
-            }
-            item->host_ns = m.log_time_ns;
-            pending_.push_back(std::move(item).value());
-            if (m.log_time_ns == next_ns_) {
-              ++skip_;
-            } else {
-              next_ns_ = m.log_time_ns;
-              skip_ = 1;
-            }
-            return false;
-          }));
+      taken = 0;
+      limit = 1;
+      HC_RETURN_IF_ERROR(binding_->session->read(*binding_->stream, from, kForever, visit));
       HC_RETURN_IF_ERROR(decode_status);
       if (pending_.empty()) exhausted_ = true;
     }
