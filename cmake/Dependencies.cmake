@@ -35,6 +35,9 @@ set_target_properties(SuiteSparse::CHOLMOD PROPERTIES IMPORTED_LOCATION ${CHOLMO
   INTERFACE_LINK_LIBRARIES ${SUITESPARSE_CONFIG_LIBRARY})
 find_package(Ceres REQUIRED)
 
+# calibration and tracking: OpenCV 4.6 (Debian); aruco is in libopencv-contrib-dev.
+find_package(OpenCV 4 REQUIRED COMPONENTS core imgproc imgcodecs calib3d features2d aruco)
+
 # rig: compression for MCAP chunks, device access, image files.
 pkg_check_modules(ZSTD REQUIRED IMPORTED_TARGET libzstd)
 pkg_check_modules(LZ4 REQUIRED IMPORTED_TARGET liblz4)
