@@ -183,10 +183,23 @@ Result<std::optional<BoardDetection>> detect_board(const ImageView& image, const
       const cv::Size pattern(board.cols, board.rows);
       std::vector<cv::Point2f> corners;
       // As OpenCV's samples/cpp/stereo_calib.cpp and calibration.cpp (the reference results).
-      bool found = cv::findChessboardCorners(
-          grey, pattern, corners, cv::CALIB_CB_ADAPTIVE_THRESH | cv::CALIB_CB_NORMALIZE_IMAGE);
+      // Like stereo_calib.cpp, a second try on the image upscaled 2x (helps small or blurred
+      // boards); the corners are refined on the original image either way.
+      bool found = false;
+      for (int scale = 1; scale <= 2 && !found; ++scale) {
+        cv::Mat scaled = grey;
+        if (scale > 1) {
+          if (static_cast<double>(grey.cols) * grey.rows > 4e6) break;  // large images: no upscale
+          cv::resize(grey, scaled, cv::Size(), scale, scale, cv::INTER_LINEAR);
+        }
+        found = cv::findChessboardCorners(
+            scaled, pattern, corners, cv::CALIB_CB_ADAPTIVE_THRESH | cv::CALIB_CB_NORMALIZE_IMAGE);
+        if (found && scale > 1)
+          for (cv::Point2f& p : corners) p *= 1.0f / static_cast<float>(scale);
+      }
       if (found) {
-        // Window no larger than ~40 % of the corner spacing (neighbouring corners stay out).
+        // Window side (2 half + 1) at most ~1.2 corner spacings: OpenCV's Size(11, 11) on boards
+        // whose corners are >= 20 px apart (the reference runs), smaller on tiny boards.
         double spacing = 1e9;
         for (int r = 0; r < board.rows; ++r)
           for (int c = 0; c + 1 < board.cols; ++c) {
@@ -195,7 +208,7 @@ Result<std::optional<BoardDetection>> detect_board(const ImageView& image, const
             spacing = std::min(spacing, static_cast<double>(std::hypot(d.x, d.y)));
           }
         const int half = std::max(
-            2, std::min(options.subpix_half_window, static_cast<int>(std::floor(spacing * 0.4))));
+            2, std::min(options.subpix_half_window, static_cast<int>(std::floor(spacing * 0.6))));
         cv::cornerSubPix(
             grey, corners, cv::Size(half, half), cv::Size(-1, -1),
             cv::TermCriteria(cv::TermCriteria::COUNT + cv::TermCriteria::EPS, 30, 0.01));

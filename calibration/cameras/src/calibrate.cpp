@@ -236,6 +236,9 @@ Result<CalibrationSummary> calibrate_camera_opencv(const CameraObservations& cam
   r.rms_px = r.initial_rms_px = cv_cal.rms;
   for (int i = 0; i < kIntrinsics && i < cv_cal.std_intrinsics.rows; ++i)
     r.intrinsics_std.push_back(cv_cal.std_intrinsics.at<double>(i));
+  // With a fixed aspect ratio OpenCV reports the deviation on one of fx / fy only.
+  if (options.fix_aspect_ratio && r.intrinsics_std.size() >= 2)
+    r.intrinsics_std[0] = r.intrinsics_std[1] = std::max(r.intrinsics_std[0], r.intrinsics_std[1]);
   std::vector<double> rms;
   for (std::size_t i = 0; i < cv_cal.views.size(); ++i) {
     ViewReport v{camera.name, cv_cal.views[i], cv_cal.points[i],

@@ -58,9 +58,10 @@ struct BoardDetection {
 };
 
 struct DetectOptions {
-  // cornerSubPix window half-size (OpenCV's calibration samples use 11x11, i.e. 5); reduced
-  // automatically when the corners are closer than ~2.5 windows.
-  int subpix_half_window = 5;
+  // cornerSubPix winSize (half the side of the search window: OpenCV's calibration samples pass
+  // Size(11, 11), a 23x23 window, and produced the reference results); reduced automatically to
+  // 60 % of the corner spacing on small boards.
+  int subpix_half_window = 11;
   // Fall back to cv::findChessboardCornersSB when the classic detector finds nothing.
   bool sector_based_fallback = true;
   // Chessboard: put the corners in the canonical order (the square diagonally outside corner 0
