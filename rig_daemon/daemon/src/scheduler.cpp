@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <set>
 #include <sstream>
 
 #include "rig_daemon/daemon/session_layout.h"
@@ -38,6 +39,14 @@ double norm3(const std::array<double, 3>& v) {
   return std::sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]);
 }
 
+Json vec_json(const Eigen::Vector3d& v) { return Json::array({v.x(), v.y(), v.z()}); }
+
+Json mat_json(const Eigen::Matrix3d& m) {
+  Json rows = Json::array();
+  for (int i = 0; i < 3; ++i) rows.push_back(Json::array({m(i, 0), m(i, 1), m(i, 2)}));
+  return rows;
+}
+
 Json pose_json(const dev::ArmPose& p) {
   return Json{{"x_m", p.x_m}, {"y_m", p.y_m}, {"z_m", p.z_m}, {"yaw_rad", p.yaw_rad}};
 }
@@ -63,7 +72,12 @@ std::string_view kTruthSchema =
     R"({"type":"object","title":"hardcopy.GroundTruth","properties":{)"
     R"("host_ns":{"type":"integer"},"trigger_index":{"type":"integer"},"probe":{"type":"object"},)"
     R"("indentation_m":{"type":"number"},"force_n":{"type":"number","description":"true contact force, N"},)"
-    R"("markers_m":{"type":"array","items":{"type":"array","items":{"type":"number"}}}}})";
+    R"("markers_m":{"type":"array","items":{"type":"array","items":{"type":"number"}}},)"
+    R"("probe_tip_m":{"type":"array","items":{"type":"number"}},"probe_axis":{"type":"array","items":{"type":"number"}},)"
+    R"("probe_radius_m":{"type":"number"},"probe_shown":{"type":"boolean"},)"
+    R"("shaft_markers_m":{"type":"array","items":{"type":"array","items":{"type":"number"}}},"shaft_marker_radius_m":{"type":"number"},)"
+    R"("cameras":{"type":"object","description":"camera -> {occluded: [marker index], out_of_view: [marker index], board_visible}"},)"
+    R"("board":{"type":"object","description":"pose_index, cols, rows, square_m, R (rows), t_m: x_world = R x_board + t"}}})";
 
 }  // namespace
 
@@ -116,6 +130,7 @@ struct Session::Impl {
   std::vector<std::uint16_t> ch_cams;
   std::uint16_t ch_sync = 0, ch_steps = 0, ch_events = 0, ch_truth = 0;
   bool have_truth = false;
+  std::set<std::string> session_cameras;  // names, for the per-camera truth
 
   // Control flags (any thread).
   std::atomic<bool> stop_requested{false};
@@ -264,6 +279,7 @@ Status Session::Impl::setup() {
     safety = std::make_unique<SafetyMonitor>(limits);
   }
   for (const std::string& c : cam_names) cameras.push_back(rig.get<dev::Camera>(c));
+  session_cameras = std::set<std::string>(cam_names.begin(), cam_names.end());
   ao.cameras = cam_names;
   assoc = std::make_unique<Associator>(ao);
 
@@ -377,8 +393,28 @@ Status Session::Impl::setup() {
              {"force_n", t.force_n}};
       if (t.trigger_index) j["trigger_index"] = *t.trigger_index;
       Json markers = Json::array();
-      for (const auto& m : t.markers_m) markers.push_back(Json::array({m.x(), m.y(), m.z()}));
+      for (const auto& m : t.markers_m) markers.push_back(vec_json(m));
       j["markers_m"] = std::move(markers);
+      const dev::sim::ProbeGeometry& g = t.probe_geometry;
+      j["probe_tip_m"] = vec_json(g.tip_m);
+      j["probe_axis"] = vec_json(g.axis);
+      j["probe_radius_m"] = g.radius_m;
+      j["probe_shown"] = t.probe_shown;
+      j["shaft_markers_m"] = Json::array({vec_json(g.markers_m[0]), vec_json(g.markers_m[1])});
+      j["shaft_marker_radius_m"] = g.marker_radius_m;
+      Json cams = Json::object();
+      for (const dev::sim::CameraTruth& c : t.cameras) {
+        if (!session_cameras.count(c.camera)) continue;
+        cams[c.camera] = {{"occluded", c.occluded},
+                          {"out_of_view", c.out_of_view},
+                          {"board_visible", c.board_visible}};
+      }
+      j["cameras"] = std::move(cams);
+      if (t.board_pose_index) {
+        j["board"] = {{"pose_index", *t.board_pose_index}, {"cols", t.board_spec.cols},
+                      {"rows", t.board_spec.rows},         {"square_m", t.board_spec.square_m},
+                      {"R", mat_json(t.board_pose.R)},     {"t_m", vec_json(t.board_pose.t)}};
+      }
       recorder->write(ch_truth, t.host_ns, t.host_ns,
                       static_cast<std::uint32_t>(t.trigger_index.value_or(0)),
                       rec::json_message(j));
@@ -488,6 +524,13 @@ Status Session::Impl::poll() {
         if (recent_force.size() > kForceWindow) recent_force.pop_front();
       }
     }
+    // The stall check right after the read: time spent below on other devices (simulated
+    // cameras render their frames inside read()) is not a gap in the F/T stream.
+    if (!trip) {
+      if (std::optional<SafetyTrip> t = safety->check_stall(armed_since_ns >= 0, last_ft_ns,
+                                                            armed_since_ns, clock().now_ns()))
+        handle_trip(*t);
+    }
   }
   for (std::size_t i = 0; i < cameras.size(); ++i) {
     frames_buf.clear();
@@ -520,11 +563,6 @@ Status Session::Impl::poll() {
     }
   }
   const std::int64_t now = clock().now_ns();
-  if (ft && !trip) {
-    if (std::optional<SafetyTrip> t =
-            safety->check_stall(armed_since_ns >= 0, last_ft_ns, armed_since_ns, now))
-      handle_trip(*t);
-  }
   for (SyncRecord& r : assoc->take_ready(now)) {
     recorder->write(ch_sync, r.edge_host_ns, r.edge_host_ns,
                     static_cast<std::uint32_t>(r.trigger_index), rec::json_message(r.to_json()));

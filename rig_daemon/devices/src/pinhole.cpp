@@ -1,5 +1,7 @@
 #include "rig_daemon/devices/pinhole.h"
 
+#include "rig_daemon/devices/sim_scene.h"
+
 #include <Eigen/Geometry>
 
 #include <algorithm>
@@ -85,7 +87,8 @@ Status read_pinhole(ConfigNode node, PinholeCamera& cam) {
 namespace hc::devices::sim {
 
 std::size_t render_dots(const PinholeCamera& cam, const std::vector<Eigen::Vector3d>& centers_m,
-                        double radius_m, const DotStyle& style, Frame& frame) {
+                        double radius_m, const DotStyle& style, Frame& frame,
+                        const ProbeLayer* occluder) {
   constexpr int kSub = 8;                   // supersamples per axis on edge pixels
   constexpr double kHalfDiagonal = 0.7072;  // > sqrt(2) / 2: a pixel this far is fully in/out
   const int w = static_cast<int>(frame.width);
@@ -95,7 +98,8 @@ std::size_t render_dots(const PinholeCamera& cam, const std::vector<Eigen::Vecto
   for (const Eigen::Vector3d& c : centers_m) {
     const std::optional<Eigen::Vector2d> uv = cam.project(c);
     if (!uv) continue;
-    const double r = cam.fx * radius_m / cam.depth(c);
+    const double depth = cam.depth(c);
+    const double r = cam.fx * radius_m / depth;
     const int x0 = std::max(0, static_cast<int>(std::floor(uv->x() - r - 1.0)));
     const int x1 = std::min(w - 1, static_cast<int>(std::ceil(uv->x() + r + 1.0)));
     const int y0 = std::max(0, static_cast<int>(std::floor(uv->y() - r - 1.0)));
@@ -122,7 +126,23 @@ std::size_t render_dots(const PinholeCamera& cam, const std::vector<Eigen::Vecto
           coverage = static_cast<double>(inside) / (kSub * kSub);
         }
         if (coverage <= 0.0) continue;
-        const double v = style.background + span * coverage;
+        double v = style.background + span * coverage;
+        if (occluder != nullptr) {
+          const ProbeLayer::Sample p = occluder->at(x, y);
+          const double cover = static_cast<double>(p.body) + p.marker;
+          if (cover > 0.0) {
+            const double probe = p.body * static_cast<double>(occluder->body_grey()) +
+                                 p.marker * static_cast<double>(occluder->marker_grey());
+            if (p.depth < depth) {  // the probe in front: the dot shows where it is uncovered
+              v = probe + (1.0 - cover) * v;
+            } else {  // the dot in front of the probe
+              const double under = probe + (1.0 - cover) * style.background;
+              v = coverage * style.dot + (1.0 - coverage) * under;
+            }
+            row[x] = static_cast<std::uint8_t>(std::clamp(std::lround(v), 0L, 255L));
+            continue;
+          }
+        }
         const auto value = static_cast<std::uint8_t>(std::clamp(std::lround(v), 0L, 255L));
         // Overlapping dots keep the stronger contrast.
         if (span >= 0.0 ? value > row[x] : value < row[x]) row[x] = value;

@@ -9,6 +9,7 @@
 
 #include "rig_daemon/devices/pinhole.h"
 #include "rig_daemon/devices/registry.h"
+#include "rig_daemon/devices/sim_scene.h"
 #include "rig_daemon/devices/sim_world.h"
 
 namespace hc::devices {
@@ -475,8 +476,20 @@ class SimCamera final : public Camera {
     f.pixels.assign(static_cast<std::size_t>(cam_.width) * cam_.height, style_.background);
     // The scene at mid-exposure; ground truth for that instant goes to the separate channel.
     const std::int64_t t_scene = t + exposure_ns_ / 2;
-    sim::GroundTruth truth = parts_.world().ground_truth(t_scene, trigger);
-    sim::render_dots(cam_, truth.markers_m, parts_.world().specimen().marker_radius_m(), style_, f);
+    const sim::GroundTruth truth = parts_.world().ground_truth(t_scene, trigger, false);
+    if (truth.board_pose_index) {  // a calibration capture: the board only
+      sim::render_board(cam_, truth.board_spec, truth.board_pose, f);
+    } else {
+      const sim::ProbeLayer* occluder = nullptr;
+      if (truth.probe_shown) {
+        probe_layer_.render(cam_, truth.probe_geometry, parts_.world().options().probe,
+                            static_cast<int>(cam_.width), static_cast<int>(cam_.height));
+        probe_layer_.composite(f);
+        occluder = &probe_layer_;
+      }
+      sim::render_dots(cam_, truth.markers_m, parts_.world().specimen().marker_radius_m(), style_,
+                       f, occluder);
+    }
     parts_.world().publish_ground_truth(t_scene, trigger);
     if (pixel_noise_ > 0.0) add_noise(f);
     f.frame_id = (first_frame_id_ + index) & 0xFFFFu;
@@ -499,6 +512,7 @@ class SimCamera final : public Camera {
                  Eigen::Vector3d(spec.center_m.x(), spec.center_m.y(), spec.top_z_m), cam);
     HC_RETURN_IF_ERROR(sim::read_pinhole(node, cam));
     cam_ = cam;
+    parts_.world().register_camera(name(), cam_);
     node.optional("trigger", mode_,
                   {{"hardware", TriggerMode::kHardware},
                    {"software", TriggerMode::kSoftware},
@@ -580,6 +594,7 @@ class SimCamera final : public Camera {
   std::int64_t late_ns_ = 50'000'000;
   std::uint32_t first_frame_id_ = 65400;  // like the fake GigE camera: wraps early
   sim::DotStyle style_;
+  sim::ProbeLayer probe_layer_;  // scratch, reused between frames
   double pixel_noise_ = 0.0;
   std::int64_t t0_ = 0;
   std::uint64_t k_ = 0;

@@ -68,6 +68,7 @@ Status WorldOptions::read(ConfigNode node) {
     arm_limits.max.z_m = hi[2];
   }
   node.optional("max_speed_m_s", arm_limits.max_speed_m_s, Bounds::positive());
+  node.optional("probe", probe);
   if (std::optional<ConfigNode> s = node.find("specimen")) {
     s->optional("model", specimen_model, {"hertz", "hyperelastic"});
     s->optional("height_m", hyperelastic.height_m, Bounds::positive());
@@ -102,6 +103,7 @@ Status WorldOptions::validate() const {
   HC_RETURN_IF_ERROR(specimen.validate());
   if (specimen_model == "hyperelastic") HC_RETURN_IF_ERROR(hyperelastic.validate());
   if (!(probe_radius_m > 0.0)) return invalid_argument("world: probe_radius_m must be > 0");
+  HC_RETURN_IF_ERROR(probe.validate());
   if (!arm_limits.contains(home)) return invalid_argument("world: home_m is outside the workspace");
   if (!(arm_speed_m_s > 0.0 && arm_speed_m_s <= arm_limits.max_speed_m_s))
     return invalid_argument("world: arm_speed_m_s must be in (0, max_speed_m_s]");
@@ -252,7 +254,8 @@ Indentation World::indentation(std::int64_t t_ns) {
 
 double World::true_force_n(std::int64_t t_ns) { return specimen_->force_n(indentation(t_ns)); }
 
-GroundTruth World::ground_truth(std::int64_t t_ns, std::optional<std::uint64_t> trigger_index) {
+GroundTruth World::ground_truth(std::int64_t t_ns, std::optional<std::uint64_t> trigger_index,
+                                bool per_camera) {
   GroundTruth g;
   g.host_ns = t_ns;
   g.trigger_index = trigger_index;
@@ -260,10 +263,97 @@ GroundTruth World::ground_truth(std::int64_t t_ns, std::optional<std::uint64_t> 
   const Indentation ind = indentation(t_ns);
   g.indentation_m = ind.depth_m;
   g.force_n = specimen_->force_n(ind);
-  const auto& rest = specimen_->rest_markers();
-  g.markers_m.reserve(rest.size());
-  for (const Eigen::Vector3d& m : rest) g.markers_m.push_back(m + specimen_->displacement(m, ind));
+  g.probe_geometry = ProbeGeometry::at(g.probe, options_.probe_radius_m, options_.probe);
+  std::optional<BoardShow> shown;
+  std::vector<CameraRecord> cams;
+  {
+    std::lock_guard lock(mutex_);
+    shown = board_;
+    if (per_camera) cams = cameras_;
+  }
+  g.board_pose_index = board_pose_index(t_ns, trigger_index);
+  g.probe_shown = options_.probe.visible && !g.board_pose_index;
+  if (g.board_pose_index && shown) {
+    g.board_spec = shown->spec;
+    g.board_pose = shown->poses[*g.board_pose_index];
+  } else {
+    const auto& rest = specimen_->rest_markers();
+    g.markers_m.reserve(rest.size());
+    for (const Eigen::Vector3d& m : rest)
+      g.markers_m.push_back(m + specimen_->displacement(m, ind));
+  }
+  const double marker_r = specimen_->marker_radius_m();
+  for (const CameraRecord& rec : cams) {
+    CameraTruth ct;
+    ct.camera = rec.name;
+    const PinholeCamera& cam = rec.camera;
+    const Eigen::Vector3d origin = cam.center_world();
+    for (std::size_t i = 0; i < g.markers_m.size(); ++i) {
+      const Eigen::Vector3d& m = g.markers_m[i];
+      const auto index = static_cast<std::uint32_t>(i);
+      const std::optional<Eigen::Vector2d> uv = cam.project(m);
+      const double z = cam.depth(m);
+      const double r_px = uv ? cam.fx * marker_r / z + 1.0 : 0.0;
+      if (!uv || uv->x() - r_px < -0.5 || uv->y() - r_px < -0.5 ||
+          uv->x() + r_px > cam.width - 0.5 || uv->y() + r_px > cam.height - 0.5)
+        ct.out_of_view.push_back(index);
+      if (!g.probe_shown) continue;
+      const Eigen::Vector3d d = m - origin;
+      const double dist = d.norm();
+      // Grown by the dot's radius plus 1.5 px (the anti-aliased edges of dot and probe).
+      const double s = g.probe_geometry.ray_hit(origin, d / dist, marker_r + 1.5 * z / cam.fx);
+      if (s < dist - marker_r) ct.occluded.push_back(index);
+    }
+    if (g.board_pose_index) ct.board_visible = board_visible(cam, g.board_spec, g.board_pose);
+    g.cameras.push_back(std::move(ct));
+  }
   return g;
+}
+
+// ---- Scene ----
+
+void World::register_camera(const std::string& name, const PinholeCamera& camera) {
+  std::lock_guard lock(mutex_);
+  for (CameraRecord& c : cameras_)
+    if (c.name == name) {
+      c.camera = camera;
+      return;
+    }
+  cameras_.push_back(CameraRecord{name, camera});
+}
+
+std::vector<CameraRecord> World::cameras() const {
+  std::lock_guard lock(mutex_);
+  return cameras_;
+}
+
+void World::show_board(BoardShow board) {
+  std::lock_guard lock(mutex_);
+  board_ = std::move(board);
+}
+
+void World::hide_board() {
+  std::lock_guard lock(mutex_);
+  board_.reset();
+}
+
+std::optional<BoardShow> World::board() const {
+  std::lock_guard lock(mutex_);
+  return board_;
+}
+
+std::optional<std::size_t> World::board_pose_index(
+    std::int64_t t_ns, std::optional<std::uint64_t> trigger_index) const {
+  std::lock_guard lock(mutex_);
+  if (!board_ || board_->poses.empty()) return std::nullopt;
+  const std::uint64_t n = board_->poses.size();
+  if (trigger_index) {
+    if (*trigger_index < board_->first_trigger_index) return std::nullopt;  // before the capture
+    return static_cast<std::size_t>((*trigger_index - board_->first_trigger_index) % n);
+  }
+  if (t_ns < board_->start_ns) return std::nullopt;
+  const std::int64_t k = (t_ns - board_->start_ns) / std::max<std::int64_t>(1, board_->dwell_ns);
+  return static_cast<std::size_t>(static_cast<std::uint64_t>(k) % n);
 }
 
 void World::set_ground_truth_callback(std::function<void(const GroundTruth&)> callback) {
@@ -279,7 +369,7 @@ void World::publish_ground_truth(std::int64_t t_ns, std::optional<std::uint64_t>
     last_truth_ns_ = t_ns;
     callback = truth_callback_;
   }
-  callback(ground_truth(t_ns, trigger_index));
+  callback(ground_truth(t_ns, trigger_index, true));
 }
 
 // ---- Trigger timeline ----

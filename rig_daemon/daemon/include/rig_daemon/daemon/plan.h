@@ -18,7 +18,22 @@
 //   workspace: {min_m: [-0.1, -0.1, 0.0], max_m: [0.1, 0.1, 0.2]}
 //   cameras: [cam0, cam1, cam2, cam3, cam4, cam5, cam6]
 //
-// Both accept `specimen:` (a map of scalars recorded with the session) and `description:`.
+//   protocol: calibration        # a chessboard shown to the cameras in N poses, one trigger each
+//   name: calib_board
+//   board: {cols: 9, rows: 6, square_m: 0.006}   # inner corners, square size (+ margin_squares)
+//   poses: 20                    # trigger pulses = board poses
+//   seed: 3                      # simulated rigs: the seeded pose sequence (sim_scene.h)
+//   dwell_s: 0.2                 # time per pose (a technician moves the board between pulses)
+//   max_tilt_deg: 35             # optional, simulated pose sequence
+//   cameras: [cam0, cam1, cam2]
+//   trigger: {pulse_width_s: 0.001}              # optional
+//   trigger_device: trigger      # optional (default: the rig's first trigger)
+//
+// On a simulated rig the calibration protocol shows the board in the world (the specimen and the
+// probe are then not rendered) and the session gets a "sim_cameras" metadata record with the true
+// camera parameters (session_layout.h).
+//
+// All accept `specimen:` (a map of scalars recorded with the session) and `description:`.
 #pragma once
 
 #include <array>
@@ -92,7 +107,21 @@ struct AutomatedPlan {
   int frames_per_step = 1;  // trigger pulses per step after settling
 };
 
-enum class Protocol { kHandHeld, kAutomated };
+struct CalibrationPlan {
+  int board_cols = 9;  // inner corners
+  int board_rows = 6;
+  double square_m = 0.006;
+  double margin_squares = 1.0;
+  int poses = 20;
+  std::uint64_t seed = 1;
+  double dwell_s = 0.2;
+  double max_tilt_deg = 35.0;
+  std::vector<std::string> cameras;
+  TriggerSettings trigger;     // only pulse_width_s is used: one pulse per pose
+  std::string trigger_device;  // empty: the rig's first trigger
+};
+
+enum class Protocol { kHandHeld, kAutomated, kCalibration };
 std::string_view to_string(Protocol p);
 
 struct Plan {
@@ -101,6 +130,7 @@ struct Plan {
   Protocol protocol = Protocol::kHandHeld;
   HandHeldPlan hand_held;
   AutomatedPlan automated;
+  CalibrationPlan calibration;
   std::map<std::string, std::string> specimen;  // free-form metadata (scalars)
   std::string source_text;  // the YAML as read (recorded in the session metadata)
 
@@ -108,7 +138,7 @@ struct Plan {
   // The plan as JSON (recorded as metadata and returned by `status --json`).
   Json to_json() const;
   // Number of trigger edges the plan will fire (hand-held: rate x duration; automated: locations
-  // x levels x steps x frames_per_step).
+  // x levels x steps x frames_per_step; calibration: poses).
   std::int64_t expected_triggers() const;
 };
 

@@ -51,6 +51,8 @@ Status read_pinhole(ConfigNode node, PinholeCamera& cam);
 
 namespace hc::devices::sim {
 
+class ProbeLayer;  // sim_scene.h
+
 // How marker dots look in a rendered image (8-bit grey levels).
 struct DotStyle {
   std::uint8_t background = 30;
@@ -62,7 +64,11 @@ struct DotStyle {
 // pixels), so the intensity-weighted centroid of a dot lands on its projected centre to a few
 // hundredths of a pixel. `frame` must be Mono8 of the camera's size; it is not cleared.
 // Returns how many dots were drawn (in front of the camera and at least partly in the image).
+// With an `occluder` (the probe, already composited into `frame`), a dot pixel the probe covers
+// in front of the dot (probe depth < dot centre depth) shows the dot only through the uncovered
+// fraction; a dot in front of the probe is drawn over it.
 std::size_t render_dots(const PinholeCamera& cam, const std::vector<Eigen::Vector3d>& centers_m,
-                        double radius_m, const DotStyle& style, Frame& frame);
+                        double radius_m, const DotStyle& style, Frame& frame,
+                        const ProbeLayer* occluder = nullptr);
 
 }  // namespace hc::devices::sim

@@ -24,6 +24,8 @@
 #include "common/status.h"
 #include "rig_daemon/devices/clock.h"
 #include "rig_daemon/devices/hyperelastic_specimen.h"
+#include "rig_daemon/devices/pinhole.h"
+#include "rig_daemon/devices/sim_scene.h"
 #include "rig_daemon/devices/specimen.h"
 #include "rig_daemon/devices/types.h"
 
@@ -40,11 +42,13 @@ struct WorldOptions {
   // "hertz" (analytic) or "hyperelastic" (FEM, processing/hyperelastic; hyperelastic_specimen.h).
   std::string specimen_model = "hertz";
   HyperelasticSpecimenOptions hyperelastic;  // shares the specimen keys; see read()
+  ProbeLook probe;                           // how the cameras see the probe (sim_scene.h)
 
   // Keys: seed, probe_radius_m, home_m [x, y, z], arm_speed_m_s, workspace_min_m, workspace_max_m,
   // max_speed_m_s, specimen {model: hertz|hyperelastic, youngs_modulus_pa, poisson_ratio,
   // stiffening, top_z_m, center_m, size_m, marker_spacing_m, marker_radius_m; hyperelastic only:
-  // height_m, layers, max_depth_m, depth_steps}.
+  // height_m, layers, max_depth_m, depth_steps}, probe {visible, shaft_radius_m, shaft_length_m,
+  // marker_distances_m, marker_radius_m, grey, marker_grey} (sim_scene.h ProbeLook).
   Status read(ConfigNode node);
   Status validate() const;
 };
@@ -69,14 +73,63 @@ struct Fault {
 };
 std::string_view to_string(Fault::Kind kind);
 
+// A calibration board shown to the cameras (World::show_board): while it is shown the specimen
+// and the probe are not rendered (a calibration capture has no specimen). A frame with a trigger
+// index k shows poses[(k - first_trigger_index) mod N]; a frame without one (free-run or software
+// triggered cameras) poses[floor((t - start_ns) / dwell_ns) mod N].
+struct BoardShow {
+  BoardSpec spec;
+  std::vector<BoardPose> poses;
+  std::uint64_t first_trigger_index = 0;
+  std::int64_t start_ns = 0;
+  std::int64_t dwell_ns = 500'000'000;
+};
+
+// What one camera sees of the specimen's markers at an instant (indices into markers_m).
+struct CameraTruth {
+  std::string camera;
+  // Markers the probe hides at least partly: the ray from the camera centre to the marker centre
+  // meets the probe (every part grown by the marker's radius plus 1.5 px at the marker's depth)
+  // in front of the marker. Conservative: no probe pixel touches any other marker's dot.
+  std::vector<std::uint32_t> occluded;
+  // Markers whose dot is not entirely inside the image (or behind the camera).
+  std::vector<std::uint32_t> out_of_view;
+  bool board_visible = false;  // whole board in view and facing the camera (board_visible())
+};
+
 // The truth behind one instant (a frame's exposure start, or any time asked for).
+//
+// On the session's /sim/ground_truth channel (hardcopy.GroundTruth json, rig_daemon/daemon
+// session_layout.h) the fields are: host_ns, trigger_index, probe {x_m, y_m, z_m, yaw_rad},
+// indentation_m, force_n, markers_m [[x, y, z]...] (empty while a board is shown), and
+//   probe_tip_m [x, y, z]        lowest point of the tip sphere (world frame)
+//   probe_axis [x, y, z]         unit vector from the tip up the shaft
+//   probe_radius_m               tip sphere radius
+//   shaft_markers_m [[x,y,z], [x,y,z]]   the two shaft marker centres (nearer the tip first)
+//   shaft_marker_radius_m
+//   cameras {NAME: {occluded: [i...], out_of_view: [i...], board_visible: bool}}
+//   board (only while shown) {pose_index, cols, rows, square_m, R [[3x3 rows]], t_m [x, y, z]}
+//                                (x_world = R x_board + t, board frame as in sim_scene.h)
 struct GroundTruth {
   std::int64_t host_ns = 0;
   std::optional<std::uint64_t> trigger_index;
   ArmPose probe;                           // tool tip = lowest point of the probe sphere
   double indentation_m = 0.0;              // <= 0: no contact
   double force_n = 0.0;                    // true contact force (no noise, drift or fault)
-  std::vector<Eigen::Vector3d> markers_m;  // deformed marker centres, world frame
+  std::vector<Eigen::Vector3d> markers_m;  // deformed marker centres, world frame (empty while a
+                                           // board is shown)
+  ProbeGeometry probe_geometry;            // tip, axis, shaft markers
+  bool probe_shown = true;                 // rendered (probe.visible and no board shown)
+  std::optional<std::size_t> board_pose_index;  // set while a board is shown
+  BoardSpec board_spec;
+  BoardPose board_pose;
+  std::vector<CameraTruth> cameras;  // every registered camera, in registration order
+};
+
+// A simulated camera as the world knows it (for occlusion truth and the session's metadata).
+struct CameraRecord {
+  std::string name;
+  PinholeCamera camera;
 };
 
 class World {
@@ -107,13 +160,27 @@ class World {
   // ---- Contact ----
   Indentation indentation(std::int64_t t_ns);
   double true_force_n(std::int64_t t_ns);
-  GroundTruth ground_truth(std::int64_t t_ns, std::optional<std::uint64_t> trigger_index = {});
+  // `per_camera`: also fill GroundTruth::cameras (occlusion per registered camera).
+  GroundTruth ground_truth(std::int64_t t_ns, std::optional<std::uint64_t> trigger_index = {},
+                           bool per_camera = true);
   // Called (from the thread of the device that rendered it) with the truth of every distinct
   // frame time, once per time even when several cameras render it. Must not call back into the
   // world. Set before devices are active.
   void set_ground_truth_callback(std::function<void(const GroundTruth&)> callback);
   // Simulated cameras call this for every frame they render; it runs the callback once per time.
   void publish_ground_truth(std::int64_t t_ns, std::optional<std::uint64_t> trigger_index);
+
+  // ---- Scene: cameras and calibration board ----
+  // Simulated cameras register their true calibration when configured (a name registered again
+  // replaces the earlier record).
+  void register_camera(const std::string& name, const PinholeCamera& camera);
+  std::vector<CameraRecord> cameras() const;
+  void show_board(BoardShow board);
+  void hide_board();
+  std::optional<BoardShow> board() const;
+  // The board pose index a frame at t_ns with `trigger_index` shows, or nullopt (no board).
+  std::optional<std::size_t> board_pose_index(std::int64_t t_ns,
+                                              std::optional<std::uint64_t> trigger_index) const;
 
   // ---- Trigger timeline (driven by the simulated trigger; followed by hardware-triggered
   // simulated cameras and triggered FSRs) ----
@@ -167,6 +234,8 @@ class World {
   std::vector<Program> programs_;
   std::vector<Fault> faults_;
   std::function<void(const GroundTruth&)> truth_callback_;
+  std::vector<CameraRecord> cameras_;
+  std::optional<BoardShow> board_;
   std::int64_t last_truth_ns_ = INT64_MIN;
 };
 
