@@ -1,0 +1,135 @@
+// From a recorded session to force-displacement samples (`hardcopy track`): marker detection in
+// every camera frame of every deformation step, tracking through the steps, registration to the
+// template mesh, occlusion filling, forces from the F/T channel (thesis Sec. 4.4.2, 5.6).
+//
+// The template is a TetGen tet mesh (.node/.ele) of the specimen in the world frame (the frame of
+// RigCalibration::world_from_rig; for a simulated rig the world frame of the rig config). Its
+// surface nodes at the painted markers are the measured nodes: every tracked marker is registered
+// to the template node nearest to it after a rigid ICP (Horn's closed form per iteration) of the
+// first step's markers onto the template nodes, starting from world_from_rig; markers with no node
+// within `template_match_distance_m` (e.g. the probe's shaft markers) are not part of the output.
+// A node is "visible" in an example when its marker was triangulated in that step; all other
+// nodes (occluded markers, interior and unpainted nodes) get positions from a smooth deformation
+// (3-D biharmonic RBF of the measured displacements, with filled points that would lie inside the
+// probe sphere moved onto it and added as constraints) and visible = 0.
+//
+// Session layout read (rig_daemon/daemon/session_layout.h): /<camera>/image (foxglove.RawImage
+// mono8 or rgb8), /session/sync (trigger index, edge time, F/T force), /session/steps (one per
+// deformation step: trigger_indices, pose of the probe tip, location/level/step), and on simulated
+// rigs /sim/ground_truth (markers_m per trigger index). Without /session/steps every sync record
+// is a step. A step's frame from a camera is the frame logged between the step's trigger edge and
+// the next edge.
+//
+// Forces: the F/T sample associated with the step's trigger (SyncRecord force_n, sensor axes =
+// world axes) is the force on the probe; the specimen receives its negative, distributed over the
+// template nodes under the probe sphere (weights = how far each node is inside the sphere grown
+// by contact_tolerance_m), or all on the node nearest the tip when none is. Fixed nodes: the
+// template's bottom (min z within fixed_tolerance_m).
+#pragma once
+
+#include <Eigen/Core>
+
+#include <cstdint>
+#include <filesystem>
+#include <functional>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "calibration/cameras/camera_model.h"
+#include "common/status.h"
+#include "common/tet_mesh.h"
+#include "processing/markers/dots.h"
+#include "processing/material/samples.h"
+#include "processing/tracking/tracker.h"
+
+namespace hc::tracking {
+
+// One deformation step as the session records it.
+struct SessionStep {
+  std::uint64_t trigger_index = 0;
+  std::int64_t edge_host_ns = 0;
+  int location = -1, level = -1, step = -1;              // -1: not an automated-plan step
+  Eigen::Vector3d ft_force_n = Eigen::Vector3d::Zero();  // F/T reading (force on the probe)
+  bool has_force = false;
+  std::optional<Eigen::Vector3d> probe_tip_m;    // world frame, from the step's pose
+  FrameDetections detections;                    // [camera in calibration order][dot]
+  std::vector<int> frames_found;                 // per camera: 1 when a frame was found
+  std::vector<Eigen::Vector3d> truth_markers_m;  // /sim/ground_truth markers_m (world); empty: none
+  // /sim/ground_truth cameras.NAME.occluded, in calibration camera order (empty when absent).
+  std::vector<std::vector<std::uint32_t>> truth_occluded;
+};
+
+struct StageTimes {
+  double decode_s = 0;        // reading + decompressing + decoding frames (and the JSON channels)
+  double detection_s = 0;     // dot detection
+  double matching_s = 0;      // correspondences, association and triangulation
+  double registration_s = 0;  // ICP, node assignment, filling, forces
+  double total_s = 0;
+};
+
+struct SessionDetections {
+  std::vector<calib::CameraModel> cameras;  // calibration order, only cameras of the session
+  std::vector<SessionStep> steps;
+  bool has_truth = false;
+  StageTimes times;
+};
+
+struct SessionReadOptions {
+  markers::BlobOptions blobs;
+  std::size_t max_steps = 0;  // 0: all
+  int threads = 0;            // detection threads (0: TBB's default)
+};
+
+// Reads a session's steps and detects the dots of every step frame. Errors (kInvalidArgument):
+// unreadable file, no camera channel, a session camera missing from the calibration or a
+// calibration camera missing from the session, image sizes that differ from the calibration, no
+// steps / sync records, frames that are not mono8 / rgb8.
+Result<SessionDetections> read_session_detections(const std::filesystem::path& session,
+                                                  const calib::RigCalibration& calibration,
+                                                  const SessionReadOptions& options = {});
+
+struct SessionTrackOptions {
+  TrackOptions track;
+  double template_match_distance_m = 1.0e-3;
+  double fixed_tolerance_m = 1.0e-6;
+  double probe_radius_m = 0.005;  // sphere radius of the probe (the simulator's default)
+  double contact_tolerance_m = 0.3e-3;
+  double fill_regularization_m = 0.0;
+  // Filled nodes that would lie inside the probe sphere (pose from the step record) are put on
+  // its surface and used as constraints of the fill.
+  bool probe_constraint = true;
+};
+
+struct TrackSummary {
+  std::size_t markers = 0;  // tracked markers registered to template nodes
+  std::size_t steps = 0;
+  double matched_fraction = 0;             // measured (marker, step) pairs / (markers x steps)
+  double detections_matched_fraction = 0;  // dots assigned to a tracked marker / all dots
+  double reprojection_rms_px = 0;          // over all measured markers' views
+  double registration_rms_m = 0;           // ICP residual of the first step
+  // Ground truth (simulated sessions only).
+  bool has_truth = false;
+  double truth_rms_error_m = 0;  // measured markers vs truth over all steps (world frame)
+  double truth_max_error_m = 0;
+  double truth_matched_fraction = 0;  // measured / truth-visible (in >= 2 images, not occluded)
+  std::size_t filled = 0;             // (marker, step) pairs filled
+  double filled_truth_rms_error_m = 0;
+  double filled_truth_max_error_m = 0;
+  StageTimes times;
+};
+
+struct TrackedSession {
+  material::Samples samples;
+  TrackSummary summary;
+  std::vector<int> marker_node;  // per registered marker: template node
+};
+
+// Tracks the detections, registers them to the template and builds the samples (one example per
+// step). kFailedPrecondition when the first step has too few markers or the registration fails.
+Result<TrackedSession> track_detections(const SessionDetections& detections,
+                                        const calib::RigCalibration& calibration,
+                                        const TetMesh& template_mesh,
+                                        const SessionTrackOptions& options = {});
+
+}  // namespace hc::tracking

@@ -1,0 +1,665 @@
+#include "processing/tracking/session_tracking.h"
+
+#include <fmt/format.h>
+#include <tbb/global_control.h>
+#include <tbb/parallel_for.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <map>
+#include <set>
+
+#include "common/json.h"
+#include "rig_daemon/recording/foxglove_image.h"
+#include "rig_daemon/recording/mcap_reader.h"
+#include "rig_daemon/recording/session_conventions.h"
+
+namespace hc::tracking {
+namespace {
+
+// Topic names of rig_daemon/daemon/session_layout.h (a header of the daemon library, which the
+// offline tools do not link): keep in step with it.
+namespace rig {
+constexpr std::string_view kSyncTopic = "/session/sync";
+constexpr std::string_view kStepsTopic = "/session/steps";
+constexpr std::string_view kGroundTruthTopic = "/sim/ground_truth";
+std::string camera_topic(std::string_view camera) {
+  std::string t;
+  t += '/';
+  t += camera;
+  t += "/image";
+  return t;
+}
+}  // namespace rig
+
+using Clock = std::chrono::steady_clock;
+double seconds_since(Clock::time_point t0) {
+  return std::chrono::duration<double>(Clock::now() - t0).count();
+}
+
+// JSON field helpers: a malformed session message is bad input, never an exception.
+bool get_vec3(const Json& j, const char* key, Eigen::Vector3d& out) {
+  if (!j.contains(key) || !j[key].is_array() || j[key].size() != 3) return false;
+  for (int i = 0; i < 3; ++i) {
+    if (!j[key][static_cast<std::size_t>(i)].is_number()) return false;
+    out[i] = j[key][static_cast<std::size_t>(i)].get<double>();
+  }
+  return out.allFinite();
+}
+template <typename T>
+bool get_int(const Json& j, const char* key, T& out) {
+  if (!j.contains(key) || !j[key].is_number_integer()) return false;
+  out = j[key].get<T>();
+  return true;
+}
+
+struct PendingFrame {
+  std::size_t step = 0;
+  std::size_t camera = 0;
+  recording::RawImage image;
+};
+
+}  // namespace
+
+Result<SessionDetections> read_session_detections(const std::filesystem::path& session,
+                                                  const calib::RigCalibration& calibration,
+                                                  const SessionReadOptions& options) {
+  const auto t_start = Clock::now();
+  HC_RETURN_IF_ERROR(options.blobs.validate());
+  Result<recording::McapReader> opened = recording::McapReader::open(session);
+  if (!opened.ok()) return invalid_argument(opened.status().to_string());
+  const recording::McapReader& reader = *opened;
+  const std::string name = session.filename().string();
+
+  // Cameras: every foxglove.RawImage channel named /<camera>/image.
+  std::set<std::string> session_cameras;
+  for (const auto& [id, ch] : reader.channels()) {
+    auto s = reader.schemas().find(ch.schema_id);
+    const bool image =
+        s != reader.schemas().end() && s->second.name == recording::kRawImageSchemaName;
+    if (!image) continue;
+    const std::string& t = ch.topic;
+    if (t.size() > 7 && t.front() == '/' && t.ends_with("/image"))
+      session_cameras.insert(t.substr(1, t.size() - 7));
+  }
+  if (session_cameras.empty())
+    return invalid_argument(
+        fmt::format("{}: the session has no camera channel (/<camera>/image)", name));
+  SessionDetections out;
+  for (const calib::CameraModel& c : calibration.cameras) {
+    if (!session_cameras.count(c.name))
+      return invalid_argument(
+          fmt::format("{}: calibration camera '{}' has no channel in the session (cameras: {})",
+                      name, c.name, fmt::join(session_cameras, ", ")));
+    out.cameras.push_back(c);
+  }
+  for (const std::string& s : session_cameras)
+    if (calibration.find(s) == nullptr)
+      return invalid_argument(
+          fmt::format("{}: session camera '{}' is not in the calibration", name, s));
+  if (out.cameras.size() < 2)
+    return invalid_argument(fmt::format("{}: tracking needs at least 2 calibrated cameras", name));
+  const std::size_t nc = out.cameras.size();
+
+  // Image sizes from the session's calibration metadata (checked again on every frame).
+  Result<std::vector<recording::Metadata>> metadata = reader.read_metadata();
+  if (!metadata.ok()) return invalid_argument(metadata.status().to_string());
+  for (const recording::Metadata& m : *metadata) {
+    if (m.name != recording::kMetadataCalibration) continue;
+    auto it = m.metadata.find("json");
+    if (it == m.metadata.end()) continue;
+    const Json j = Json::parse(it->second, nullptr, false);
+    if (j.is_discarded() || !j.is_object()) continue;
+    for (const calib::CameraModel& c : out.cameras) {
+      if (!j.contains(c.name) || !j[c.name].is_object()) continue;
+      int w = 0, h = 0;
+      if (get_int(j[c.name], "width", w) && get_int(j[c.name], "height", h) &&
+          (w != c.width || h != c.height))
+        return invalid_argument(
+            fmt::format("{}: camera '{}' records {}x{} images but the calibration is for {}x{}",
+                        name, c.name, w, h, c.width, c.height));
+    }
+  }
+
+  // The JSON channels.
+  const auto t_json = Clock::now();
+  struct Sync {
+    std::int64_t edge_ns = 0;
+    Eigen::Vector3d force = Eigen::Vector3d::Zero();
+    bool has_force = false;
+  };
+  std::map<std::uint64_t, Sync> sync;
+  std::vector<SessionStep> steps;
+  std::map<std::uint64_t, Json> truth;
+  Status bad;
+  recording::ReadOptions ro;
+  ro.topics = {std::string(rig::kSyncTopic), std::string(rig::kStepsTopic),
+               std::string(rig::kGroundTruthTopic)};
+  ro.order = recording::ReadOrder::kLogTime;
+  Status read = reader.read_messages(ro, [&](const recording::MessageEvent& e) {
+    Result<Json> j = recording::parse_json_message(e.message.data);
+    if (!j.ok() || !j->is_object()) {
+      bad = invalid_argument(fmt::format("{}: {} message {} is not a JSON object", name,
+                                         e.channel->topic, e.message.sequence));
+      return false;
+    }
+    const std::string& topic = e.channel->topic;
+    if (topic == rig::kSyncTopic) {
+      std::uint64_t index = 0;
+      Sync s;
+      if (!get_int(*j, "trigger_index", index) || !get_int(*j, "edge_host_ns", s.edge_ns)) {
+        bad = invalid_argument(
+            fmt::format("{}: sync record without trigger_index/edge_host_ns", name));
+        return false;
+      }
+      s.has_force = get_vec3(*j, "force_n", s.force);
+      sync[index] = s;
+    } else if (topic == rig::kStepsTopic) {
+      SessionStep st;
+      if (!j->contains("trigger_indices") || !(*j)["trigger_indices"].is_array() ||
+          (*j)["trigger_indices"].empty() || !(*j)["trigger_indices"][0].is_number_integer()) {
+        bad = invalid_argument(fmt::format("{}: step record without trigger_indices", name));
+        return false;
+      }
+      st.trigger_index = (*j)["trigger_indices"][0].get<std::uint64_t>();
+      get_int(*j, "location", st.location);
+      get_int(*j, "level", st.level);
+      get_int(*j, "step", st.step);
+      if (j->contains("pose") && (*j)["pose"].is_object()) {
+        const Json& p = (*j)["pose"];
+        if (p.contains("x_m") && p["x_m"].is_number() && p.contains("y_m") &&
+            p["y_m"].is_number() && p.contains("z_m") && p["z_m"].is_number())
+          st.probe_tip_m = Eigen::Vector3d(p["x_m"].get<double>(), p["y_m"].get<double>(),
+                                           p["z_m"].get<double>());
+      }
+      steps.push_back(std::move(st));
+    } else {
+      std::uint64_t index = 0;
+      if (get_int(*j, "trigger_index", index)) truth[index] = std::move(*j);
+    }
+    return true;
+  });
+  if (!read.ok()) return invalid_argument(read.to_string());
+  HC_RETURN_IF_ERROR(bad);
+  if (sync.empty())
+    return invalid_argument(fmt::format("{}: no /session/sync records (no trigger edges)", name));
+  if (steps.empty()) {
+    for (const auto& [index, s] : sync) {
+      SessionStep st;
+      st.trigger_index = index;
+      steps.push_back(std::move(st));
+    }
+  }
+  if (options.max_steps > 0 && steps.size() > options.max_steps) steps.resize(options.max_steps);
+  std::vector<std::int64_t> edge_times;
+  std::vector<std::uint64_t> edge_index;
+  for (const auto& [index, s] : sync) {
+    edge_times.push_back(s.edge_ns);
+    edge_index.push_back(index);
+  }
+  std::map<std::uint64_t, std::size_t> step_of_trigger;
+  for (std::size_t k = 0; k < steps.size(); ++k) {
+    SessionStep& st = steps[k];
+    auto s = sync.find(st.trigger_index);
+    if (s == sync.end())
+      return invalid_argument(fmt::format("{}: step {} names trigger {} with no sync record", name,
+                                          k, st.trigger_index));
+    st.edge_host_ns = s->second.edge_ns;
+    st.ft_force_n = s->second.force;
+    st.has_force = s->second.has_force;
+    st.detections.assign(nc, {});
+    st.frames_found.assign(nc, 0);
+    step_of_trigger[st.trigger_index] = k;
+    auto t = truth.find(st.trigger_index);
+    if (t != truth.end() && t->second.contains("markers_m") && t->second["markers_m"].is_array()) {
+      for (const Json& m : t->second["markers_m"]) {
+        if (!m.is_array() || m.size() != 3 || !m[0].is_number() || !m[1].is_number() ||
+            !m[2].is_number())
+          return invalid_argument(fmt::format("{}: ground truth markers_m malformed", name));
+        st.truth_markers_m.emplace_back(m[0].get<double>(), m[1].get<double>(), m[2].get<double>());
+      }
+      if (t->second.contains("cameras") && t->second["cameras"].is_object()) {
+        st.truth_occluded.resize(nc);
+        for (std::size_t c = 0; c < nc; ++c) {
+          const Json& cams = t->second["cameras"];
+          if (!cams.contains(out.cameras[c].name)) continue;
+          const Json& cj = cams[out.cameras[c].name];
+          if (cj.is_object() && cj.contains("occluded") && cj["occluded"].is_array())
+            for (const Json& i : cj["occluded"])
+              if (i.is_number_unsigned()) st.truth_occluded[c].push_back(i.get<std::uint32_t>());
+        }
+      }
+    }
+  }
+  out.has_truth = !steps.empty() && !steps.front().truth_markers_m.empty();
+  out.times.decode_s += seconds_since(t_json);
+
+  // Frames: stream the camera channels, keep the frame after each step's edge, detect in batches.
+  std::map<std::string, std::size_t> camera_of_topic;
+  std::vector<std::string> topics;
+  for (std::size_t c = 0; c < nc; ++c) {
+    topics.push_back(rig::camera_topic(out.cameras[c].name));
+    camera_of_topic[topics.back()] = c;
+  }
+  std::optional<tbb::global_control> limit;
+  if (options.threads > 0)
+    limit.emplace(tbb::global_control::max_allowed_parallelism,
+                  static_cast<std::size_t>(options.threads));
+  std::vector<PendingFrame> batch;
+  constexpr std::size_t kBatch = 8;
+  Status detect_error;
+  const auto flush = [&] {
+    const auto t0 = Clock::now();
+    std::vector<Result<std::vector<markers::Dot>>> results(
+        batch.size(), Result<std::vector<markers::Dot>>(internal_error("not run")));
+    tbb::parallel_for(std::size_t{0}, batch.size(), [&](std::size_t i) {
+      const recording::RawImage& im = batch[i].image;
+      markers::ImageView v{
+          static_cast<int>(im.width), static_cast<int>(im.height),
+          static_cast<std::ptrdiff_t>(im.step),
+          im.encoding == "rgb8" ? markers::PixelFormat::kRgb8 : markers::PixelFormat::kMono8,
+          im.data.data()};
+      results[i] = markers::detect_blobs(v, options.blobs);
+    });
+    for (std::size_t i = 0; i < batch.size(); ++i) {
+      if (!results[i].ok()) {
+        detect_error = results[i].status();
+        continue;
+      }
+      auto& dets = steps[batch[i].step].detections[batch[i].camera];
+      for (const markers::Dot& d : *results[i]) dets.push_back(d.center_px);
+    }
+    batch.clear();
+    out.times.detection_s += seconds_since(t0);
+  };
+  ro.topics = topics;
+  ro.order = recording::ReadOrder::kFile;
+  const auto t_frames = Clock::now();
+  read = reader.read_messages(ro, [&](const recording::MessageEvent& e) {
+    const std::size_t c = camera_of_topic.at(e.channel->topic);
+    // The edge this frame follows: the last edge at or before its log time.
+    const auto t = static_cast<std::int64_t>(e.message.log_time);
+    auto it = std::upper_bound(edge_times.begin(), edge_times.end(), t);
+    if (it == edge_times.begin()) return true;
+    const std::uint64_t trig = edge_index[static_cast<std::size_t>(it - edge_times.begin() - 1)];
+    auto s = step_of_trigger.find(trig);
+    if (s == step_of_trigger.end() || steps[s->second].frames_found[c]) return true;
+    Result<recording::RawImage> im = recording::decode_raw_image(e.message.data);
+    if (!im.ok()) {
+      bad = invalid_argument(fmt::format("{}: {} frame {}: {}", name, e.channel->topic,
+                                         e.message.sequence, im.status().to_string()));
+      return false;
+    }
+    if (im->encoding != "mono8" && im->encoding != "rgb8") {
+      bad = invalid_argument(fmt::format("{}: {}: unsupported image encoding '{}'", name,
+                                         e.channel->topic, im->encoding));
+      return false;
+    }
+    if (static_cast<int>(im->width) != out.cameras[c].width ||
+        static_cast<int>(im->height) != out.cameras[c].height) {
+      bad = invalid_argument(fmt::format(
+          "{}: camera '{}' frame is {}x{} but the calibration is for {}x{}", name,
+          out.cameras[c].name, im->width, im->height, out.cameras[c].width, out.cameras[c].height));
+      return false;
+    }
+    steps[s->second].frames_found[c] = 1;
+    batch.push_back({s->second, c, std::move(*im)});
+    if (batch.size() >= kBatch) flush();
+    return true;
+  });
+  if (!read.ok()) return invalid_argument(read.to_string());
+  HC_RETURN_IF_ERROR(bad);
+  flush();
+  HC_RETURN_IF_ERROR(detect_error);
+  out.times.decode_s += seconds_since(t_frames) - out.times.detection_s;
+  out.steps = std::move(steps);
+  out.times.total_s = seconds_since(t_start);
+  return out;
+}
+
+Result<TrackedSession> track_detections(const SessionDetections& in,
+                                        const calib::RigCalibration& calibration,
+                                        const TetMesh& mesh, const SessionTrackOptions& options) {
+  HC_RETURN_IF_ERROR(options.track.validate());
+  if (in.steps.empty()) return invalid_argument("no steps to track");
+  if (mesh.num_nodes() < 4 || mesh.num_tets() < 1)
+    return invalid_argument("the template mesh is empty");
+  TrackedSession out;
+  TrackSummary& sum = out.summary;
+  sum.times = in.times;
+  const std::size_t nc = in.cameras.size();
+
+  // ---- Tracking ----
+  auto t0 = Clock::now();
+  MarkerTracker tracker(in.cameras, options.track);
+  std::vector<StepResult> results;
+  results.reserve(in.steps.size());
+  for (std::size_t k = 0; k < in.steps.size(); ++k) {
+    Result<StepResult> r =
+        k == 0 ? tracker.initialise(in.steps[k].detections) : tracker.track(in.steps[k].detections);
+    if (!r.ok()) return r.status().with_context(fmt::format("step {}", k));
+    results.push_back(std::move(*r));
+  }
+  sum.times.matching_s = seconds_since(t0);
+  // Markers found in later steps: unmeasured in the steps before.
+  for (StepResult& r : results) {
+    r.points_m.resize(tracker.num_markers(), Eigen::Vector3d::Zero());
+    r.measured.resize(tracker.num_markers(), 0);
+    r.views.resize(tracker.num_markers(), 0);
+  }
+  if (tracker.num_markers() < 4)
+    return failed_precondition(
+        fmt::format("only {} markers found in the first step (need >= 4 in >= {} cameras)",
+                    tracker.num_markers(), options.track.match.min_views));
+
+  // ---- Registration to the template ----
+  t0 = Clock::now();
+  const auto nm = tracker.num_markers();
+  const std::vector<int>& birth = tracker.birth_step();
+  const std::size_t n0 = results[0].points_m.size();  // markers of the first step
+  // A marker's position in its birth step (measured there by construction).
+  const auto birth_point = [&](std::size_t m) {
+    return results[static_cast<std::size_t>(birth[m])].points_m[m];
+  };
+  std::vector<Eigen::Vector3d> first_world(n0);
+  for (std::size_t m = 0; m < n0; ++m)
+    first_world[m] = calibration.world_from_rig * results[0].points_m[m];
+  std::vector<Eigen::Vector3d> nodes(static_cast<std::size_t>(mesh.num_nodes()));
+  for (Eigen::Index i = 0; i < mesh.num_nodes(); ++i)
+    nodes[static_cast<std::size_t>(i)] = mesh.nodes.row(i).transpose();
+  Result<IcpResult> reg =
+      icp(first_world, nodes, Eigen::Isometry3d::Identity(), options.template_match_distance_m);
+  if (!reg.ok())
+    return failed_precondition(
+        fmt::format("registration of the markers to the template failed: {} (is the template in "
+                    "the world frame of the calibration?)",
+                    reg.status().message()));
+  sum.registration_rms_m = reg->rms_m;
+  const Eigen::Isometry3d T_tpl_rig = reg->T * calibration.world_from_rig;
+  // Markers farther than the match distance from their node (deformed in their first step, or
+  // found in a later step) are assigned by their estimated rest position: their position minus
+  // the displacement interpolated from the markers already assigned and measured in that step,
+  // nearest free node first.
+  std::vector<int> node_of(nm, -1);
+  std::vector<int> marker_of_node(nodes.size(), -1);
+  for (std::size_t m = 0; m < n0; ++m)
+    if (reg->match[m] >= 0) {
+      node_of[m] = reg->match[m];
+      marker_of_node[static_cast<std::size_t>(reg->match[m])] = static_cast<int>(m);
+    }
+  for (std::size_t k = 0; k < results.size(); ++k) {
+    const StepResult& r = results[k];
+    for (int round = 0; round < 3; ++round) {
+      std::vector<Eigen::Vector3d> kp, kd, q;
+      std::vector<std::size_t> qm;
+      for (std::size_t m = 0; m < r.points_m.size(); ++m) {
+        const Eigen::Vector3d x = T_tpl_rig * r.points_m[m];
+        if (node_of[m] >= 0 && r.measured[m]) {
+          kp.push_back(x);
+          kd.push_back(x - nodes[static_cast<std::size_t>(node_of[m])]);
+        } else if (node_of[m] < 0 && birth[m] == static_cast<int>(k)) {
+          q.push_back(x);
+          qm.push_back(m);
+        }
+      }
+      if (q.empty() || kp.size() < 4) break;
+      const std::vector<Eigen::Vector3d> d = interpolate_displacements(kp, kd, q);
+      std::vector<std::tuple<double, std::size_t, std::size_t>> cand;  // distance, marker, node
+      for (std::size_t i = 0; i < q.size(); ++i) {
+        const Eigen::Vector3d rest = q[i] - d[i];
+        for (std::size_t n = 0; n < nodes.size(); ++n) {
+          if (marker_of_node[n] >= 0) continue;
+          const double dist = (nodes[n] - rest).norm();
+          if (dist <= options.template_match_distance_m) cand.emplace_back(dist, qm[i], n);
+        }
+      }
+      std::sort(cand.begin(), cand.end());
+      std::size_t added = 0;
+      for (const auto& [dist, m, n] : cand) {
+        if (node_of[m] >= 0 || marker_of_node[n] >= 0) continue;
+        node_of[m] = static_cast<int>(n);
+        marker_of_node[n] = static_cast<int>(m);
+        ++added;
+      }
+      if (added == 0) break;
+    }
+  }
+  std::vector<std::size_t> kept;  // tracked marker ids registered to a node
+  for (std::size_t m = 0; m < nm; ++m)
+    if (node_of[m] >= 0) {
+      kept.push_back(m);
+      out.marker_node.push_back(node_of[m]);
+    }
+  sum.markers = kept.size();
+  sum.steps = in.steps.size();
+  if (kept.size() < 4)
+    return failed_precondition(fmt::format("only {} markers lie within {} m of a template node",
+                                           kept.size(), options.template_match_distance_m));
+
+  // Fixed nodes: the template's bottom.
+  const double zmin = mesh.nodes.col(2).minCoeff();
+  std::vector<int> fixed;
+  for (Eigen::Index i = 0; i < mesh.num_nodes(); ++i)
+    if (mesh.nodes(i, 2) <= zmin + options.fixed_tolerance_m) fixed.push_back(static_cast<int>(i));
+  std::vector<std::uint8_t> is_marker_node(nodes.size(), 0);
+  for (int n : out.marker_node) is_marker_node[static_cast<std::size_t>(n)] = 1;
+
+  out.samples.mesh = mesh;
+  const Eigen::Matrix3d R_tpl_world = reg->T.linear();
+  std::size_t measured_pairs = 0, matched_dets = 0, all_dets = 0;
+  // Truth bookkeeping: tracked marker -> truth index by the first step.
+  std::vector<int> truth_of(nm, -1);
+  if (in.has_truth) {
+    for (std::size_t m = 0; m < nm; ++m) {
+      const auto& tm = in.steps[static_cast<std::size_t>(birth[m])].truth_markers_m;
+      const Eigen::Vector3d xw = calibration.world_from_rig * birth_point(m);
+      double best = 1e-3;
+      for (std::size_t i = 0; i < tm.size(); ++i) {
+        const double d = (tm[i] - xw).norm();
+        if (d < best) {
+          best = d;
+          truth_of[m] = static_cast<int>(i);
+        }
+      }
+    }
+  }
+  double t_ss = 0, t_max = 0, f_ss = 0, f_max = 0;
+  std::size_t t_n = 0, f_n = 0, t_visible = 0, t_measured = 0;
+
+  for (std::size_t k = 0; k < in.steps.size(); ++k) {
+    const SessionStep& st = in.steps[k];
+    const StepResult& r = results[k];
+    all_dets += r.detections;
+    matched_dets += r.matched_detections;
+    material::Example ex;
+    ex.name = st.location >= 0 ? fmt::format("loc{}_lvl{}_step{}", st.location, st.level, st.step)
+                               : fmt::format("trigger{}", st.trigger_index);
+    ex.positions_m = mesh.nodes;
+    ex.visible.assign(nodes.size(), 0);
+    std::vector<Eigen::Vector3d> known_p, known_d;
+    for (std::size_t i = 0; i < kept.size(); ++i) {
+      const std::size_t m = kept[i];
+      if (!r.measured[m]) continue;
+      const auto n = static_cast<std::size_t>(out.marker_node[i]);
+      const Eigen::Vector3d x = T_tpl_rig * r.points_m[m];
+      ex.positions_m.row(static_cast<Eigen::Index>(n)) = x.transpose();
+      ex.visible[n] = 1;
+      known_p.push_back(nodes[n]);
+      known_d.push_back(x - nodes[n]);
+      ++measured_pairs;
+    }
+    std::vector<Eigen::Vector3d> query;
+    std::vector<std::size_t> query_node;
+    for (std::size_t n = 0; n < nodes.size(); ++n)
+      if (!ex.visible[n]) {
+        query.push_back(nodes[n]);
+        query_node.push_back(n);
+      }
+    std::vector<Eigen::Vector3d> filled =
+        interpolate_displacements(known_p, known_d, query, options.fill_regularization_m);
+    // The probe is a constraint too: a smooth fill under-estimates the dimple the sphere presses
+    // (the visible markers around it moved less than the hidden ones under it), so filled points
+    // inside the probe sphere are moved onto it along the push direction and the fill is solved
+    // again with them as constraints (twice: the contact patch grows as the surface drops).
+    if (st.probe_tip_m && options.probe_constraint) {
+      const Eigen::Vector3d down = R_tpl_world * Eigen::Vector3d(0, 0, -1);
+      const Eigen::Vector3d centre = reg->T * *st.probe_tip_m - options.probe_radius_m * down;
+      for (int pass = 0; pass < 2; ++pass) {
+        std::vector<Eigen::Vector3d> cp = known_p, cd = known_d;
+        std::size_t contacts = 0;
+        for (std::size_t q = 0; q < query.size(); ++q) {
+          const Eigen::Vector3d x = query[q] + filled[q];
+          // Intersect the line x + s * down with the sphere; take the exit point below.
+          const Eigen::Vector3d w = x - centre;
+          const double b = w.dot(down);
+          const double disc =
+              b * b - (w.squaredNorm() - options.probe_radius_m * options.probe_radius_m);
+          if (disc <= 0) continue;
+          const double s_exit = -b + std::sqrt(disc);
+          if (s_exit <= 0) continue;  // not inside (or above the sphere's lower half)
+          const Eigen::Vector3d on = x + s_exit * down;
+          if ((on - centre).dot(down) < 0) continue;  // upper half: not a contact
+          cp.push_back(query[q]);
+          cd.push_back(on - query[q]);
+          ++contacts;
+        }
+        if (contacts == 0) break;
+        filled = interpolate_displacements(cp, cd, query, options.fill_regularization_m);
+      }
+    }
+    for (std::size_t q = 0; q < query.size(); ++q)
+      ex.positions_m.row(static_cast<Eigen::Index>(query_node[q])) =
+          (query[q] + filled[q]).transpose();
+    // Fixed nodes stay at rest (the samples format ignores their positions anyway).
+    for (int n : fixed) ex.positions_m.row(n) = mesh.nodes.row(n);
+    ex.fixed_nodes = fixed;
+
+    // Probe and forces.
+    if (st.probe_tip_m) {
+      const Eigen::Vector3d tip = reg->T * *st.probe_tip_m;
+      const Eigen::Vector3d down = R_tpl_world * Eigen::Vector3d(0, 0, -1);
+      ex.probe.shape = "sphere";
+      ex.probe.radius_m = options.probe_radius_m;
+      ex.probe.position_m = tip - options.probe_radius_m * down;
+      ex.probe.direction = down;
+    }
+    if (st.has_force) {
+      const Eigen::Vector3d f = -(R_tpl_world * st.ft_force_n);  // on the specimen
+      std::vector<std::pair<int, double>> w;
+      double wsum = 0;
+      if (st.probe_tip_m) {
+        const Eigen::Vector3d c = ex.probe.position_m;
+        for (std::size_t n = 0; n < nodes.size(); ++n) {
+          if (std::find(fixed.begin(), fixed.end(), static_cast<int>(n)) != fixed.end()) continue;
+          const Eigen::Vector3d x = ex.positions_m.row(static_cast<Eigen::Index>(n)).transpose();
+          const double depth =
+              options.probe_radius_m + options.contact_tolerance_m - (x - c).norm();
+          if (depth > 0) {
+            w.emplace_back(static_cast<int>(n), depth);
+            wsum += depth;
+          }
+        }
+        if (w.empty()) {
+          double best = std::numeric_limits<double>::infinity();
+          int bn = -1;
+          const Eigen::Vector3d tip = reg->T * *st.probe_tip_m;
+          for (std::size_t n = 0; n < nodes.size(); ++n) {
+            const double d =
+                (ex.positions_m.row(static_cast<Eigen::Index>(n)).transpose() - tip).norm();
+            if (d < best && !std::binary_search(fixed.begin(), fixed.end(), static_cast<int>(n))) {
+              best = d;
+              bn = static_cast<int>(n);
+            }
+          }
+          if (bn >= 0) {
+            w.emplace_back(bn, 1.0);
+            wsum = 1.0;
+          }
+        }
+      }
+      if (f.norm() > 0 && wsum > 0)
+        for (const auto& [n, wi] : w) ex.forces.push_back({n, f * (wi / wsum)});
+    }
+
+    // Truth.
+    if (in.has_truth && st.truth_markers_m.size() == in.steps[0].truth_markers_m.size()) {
+      const Eigen::Isometry3d T_world_tpl = reg->T.inverse();
+      for (std::size_t i = 0; i < kept.size(); ++i) {
+        const std::size_t m = kept[i];
+        if (truth_of[m] < 0) continue;
+        const Eigen::Vector3d truth = st.truth_markers_m[static_cast<std::size_t>(truth_of[m])];
+        const auto n = static_cast<Eigen::Index>(out.marker_node[i]);
+        const Eigen::Vector3d x = T_world_tpl * Eigen::Vector3d(ex.positions_m.row(n).transpose());
+        const double e = (x - truth).norm();
+        if (r.measured[m]) {
+          const double e_raw = (calibration.world_from_rig * r.points_m[m] - truth).norm();
+          t_ss += e_raw * e_raw;
+          t_max = std::max(t_max, e_raw);
+          ++t_n;
+        } else {
+          f_ss += e * e;
+          f_max = std::max(f_max, e);
+          ++f_n;
+        }
+      }
+      // Visibility per the truth: in >= 2 images (projected with the calibration) and not
+      // occluded there.
+      std::vector<int> tracked_of_truth(st.truth_markers_m.size(), -1);
+      for (std::size_t m = 0; m < nm; ++m)
+        if (truth_of[m] >= 0)
+          tracked_of_truth[static_cast<std::size_t>(truth_of[m])] = static_cast<int>(m);
+      const Eigen::Isometry3d rig_from_world = calibration.world_from_rig.inverse();
+      for (std::size_t i = 0; i < st.truth_markers_m.size(); ++i) {
+        int seen = 0;
+        for (std::size_t c = 0; c < nc; ++c) {
+          const auto p = in.cameras[c].project(rig_from_world * st.truth_markers_m[i]);
+          if (!p || p->x() < 3 || p->y() < 3 || p->x() > in.cameras[c].width - 4 ||
+              p->y() > in.cameras[c].height - 4)
+            continue;
+          if (c < st.truth_occluded.size() &&
+              std::find(st.truth_occluded[c].begin(), st.truth_occluded[c].end(), i) !=
+                  st.truth_occluded[c].end())
+            continue;
+          ++seen;
+        }
+        if (seen < 2) continue;
+        ++t_visible;
+        const int m = tracked_of_truth[i];
+        if (m >= 0 && r.measured[static_cast<std::size_t>(m)]) ++t_measured;
+      }
+    }
+    out.samples.examples.push_back(std::move(ex));
+  }
+  sum.times.registration_s = seconds_since(t0);
+  sum.matched_fraction =
+      static_cast<double>(measured_pairs) / static_cast<double>(kept.size() * in.steps.size());
+  sum.detections_matched_fraction =
+      all_dets ? static_cast<double>(matched_dets) / static_cast<double>(all_dets) : 0.0;
+  double rs = 0, rn = 0;
+  for (const StepResult& r : results) {
+    double v = 0;
+    for (std::size_t m = 0; m < nm; ++m) v += r.measured[m] ? r.views[m] : 0;
+    rs += r.reprojection_rms_px * r.reprojection_rms_px * v;
+    rn += v;
+  }
+  sum.reprojection_rms_px = rn > 0 ? std::sqrt(rs / rn) : 0.0;
+  sum.has_truth = in.has_truth;
+  if (in.has_truth) {
+    sum.truth_rms_error_m = t_n ? std::sqrt(t_ss / static_cast<double>(t_n)) : 0.0;
+    sum.truth_max_error_m = t_max;
+    sum.truth_matched_fraction =
+        t_visible ? static_cast<double>(t_measured) / static_cast<double>(t_visible) : 0.0;
+    sum.filled = f_n;
+    sum.filled_truth_rms_error_m = f_n ? std::sqrt(f_ss / static_cast<double>(f_n)) : 0.0;
+    sum.filled_truth_max_error_m = f_max;
+  } else {
+    for (const StepResult& r : results)
+      for (std::size_t m : kept) sum.filled += r.measured[m] ? 0 : 1;
+  }
+  sum.times.total_s = in.times.total_s + sum.times.matching_s + sum.times.registration_s;
+  HC_RETURN_IF_ERROR(material::validate_samples(out.samples));
+  return out;
+}
+
+}  // namespace hc::tracking
