@@ -72,6 +72,9 @@ struct CameraReport {
   // for camera 0, which defines the rig frame).
   std::vector<double> intrinsics_std;
   std::vector<double> pose_std;
+  // Standard deviation of the camera centre (x, y, z in the rig frame, m), propagated from the
+  // pose covariance (zeros for camera 0; empty when not computed).
+  std::vector<double> center_std_m;
   std::string parent;  // the camera it was chained from in the visibility graph ("" for camera 0)
   int shared_views_with_parent = 0;
 };
