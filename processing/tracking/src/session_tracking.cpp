@@ -275,6 +275,7 @@ Result<SessionDetections> read_session_detections(const std::filesystem::path& s
   };
   ro.topics = topics;
   ro.order = recording::ReadOrder::kFile;
+  ProgressTask task(options.progress, "detecting markers", steps.size() * nc);
   const auto t_frames = Clock::now();
   read = reader.read_messages(ro, [&](const recording::MessageEvent& e) {
     const std::size_t c = camera_of_topic.at(e.channel->topic);
@@ -304,6 +305,7 @@ Result<SessionDetections> read_session_detections(const std::filesystem::path& s
       return false;
     }
     steps[s->second].frames_found[c] = 1;
+    task.advance();
     batch.push_back({s->second, c, std::move(*im)});
     if (batch.size() >= kBatch) flush();
     return true;

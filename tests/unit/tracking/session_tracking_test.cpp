@@ -7,6 +7,9 @@
 
 #include <gtest/gtest.h>
 
+#include "cli_run.h"
+#include "common/tet_mesh_io.h"
+#include "rig_daemon/recording/mcap_writer.h"
 #include "test_data.h"
 #include "track_support.h"
 
@@ -164,6 +167,79 @@ TEST_F(SimulatedPress, MismatchedCalibrationIsAClearError) {
   partial.cameras.pop_back();
   EXPECT_FALSE(read_session_detections(*session_, partial).ok());
   EXPECT_FALSE(read_session_detections(dir_->path() / "missing.mcap", *calibration_).ok());
+}
+
+// `hardcopy track` on the same session: exit 0, the --json contract (with the truth fields a
+// simulated session allows), a samples file the fitter's reader accepts.
+TEST_F(SimulatedPress, CliWritesSamplesAndPrintsTheJsonContract) {
+  ASSERT_FALSE(session_->empty());
+  const std::filesystem::path calib = dir_->path() / "calib.yml";
+  ASSERT_TRUE(calib::write_rig_calibration(calib, *calibration_).ok());
+  ASSERT_TRUE(write_tetgen(dir_->path() / "block", testing::block_template()).ok());
+  const std::filesystem::path out = dir_->path() / "samples.json";
+  const std::string common = fmt::format("track {} --calib {} --template {} ", session_->string(),
+                                         calib.string(), (dir_->path() / "block").string());
+  hc::testing::CliRun r = hc::testing::hardcopy(common + "--max-steps 5 --json -o " + out.string());
+  ASSERT_EQ(r.exit_code, 0) << r.out;
+  const Json j = Json::parse(r.out, nullptr, false);
+  ASSERT_FALSE(j.is_discarded()) << r.out;
+  for (const char* key : {"markers", "steps", "matched_fraction", "reprojection_rms_px", "time_s",
+                          "truth_rms_error_m", "truth_max_error_m"})
+    EXPECT_TRUE(j.contains(key)) << key;
+  EXPECT_EQ(j["steps"], 5);
+  EXPECT_GE(j["markers"].get<int>(), 430);
+  EXPECT_LE(j["truth_rms_error_m"].get<double>(), 1e-4);
+  EXPECT_GE(j["matched_fraction"].get<double>(), 0.99);
+  Result<material::Samples> samples = material::load_samples(out);
+  ASSERT_TRUE(samples.ok()) << samples.status().to_string();
+  EXPECT_EQ(samples->examples.size(), 5u);
+  EXPECT_EQ(samples->mesh.num_nodes(), testing::block_template().num_nodes());
+
+  // Bad input: exit 2 with a message, and no output file.
+  const std::filesystem::path bad_out = dir_->path() / "bad.json";
+  calib::RigCalibration renamed = *calibration_;
+  renamed.cameras[1].name = "cam9";
+  const std::filesystem::path bad_calib = dir_->path() / "renamed.yml";
+  ASSERT_TRUE(calib::write_rig_calibration(bad_calib, renamed).ok());
+  r = hc::testing::run_command((hc::testing::bin_dir() / "hardcopy").string() +
+                               fmt::format(" track {} --calib {} --template {} -o {} 2>&1",
+                                           session_->string(), bad_calib.string(),
+                                           (dir_->path() / "block").string(), bad_out.string()));
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_NE(r.out.find("cam9"), std::string::npos) << r.out;
+  EXPECT_FALSE(std::filesystem::exists(bad_out));
+  r = hc::testing::hardcopy(fmt::format("track {} --calib {} --template {} -o {}",
+                                        session_->string(), calib.string(),
+                                        (dir_->path() / "nothere").string(), bad_out.string()));
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_FALSE(std::filesystem::exists(bad_out));
+  r = hc::testing::hardcopy(fmt::format("track {} --calib {} --template {} -o {}",
+                                        (dir_->path() / "block.node").string(), calib.string(),
+                                        (dir_->path() / "block").string(), bad_out.string()));
+  EXPECT_EQ(r.exit_code, 2);  // not an MCAP file
+  EXPECT_FALSE(std::filesystem::exists(bad_out));
+  // A valid MCAP without any camera channel.
+  const std::filesystem::path no_cams = dir_->path() / "no_cameras.mcap";
+  {
+    auto w = recording::McapWriter::open(no_cams, {});
+    ASSERT_TRUE(w.ok()) << w.status().to_string();
+    auto ch = (*w)->add_channel("/session/sync", "json", 0);
+    ASSERT_TRUE(ch.ok());
+    const std::string msg = R"({"trigger_index": 0, "edge_host_ns": 1})";
+    ASSERT_TRUE(
+        (*w)->write_message(
+                *ch, 1, 1,
+                recording::ByteSpan(reinterpret_cast<const std::uint8_t*>(msg.data()), msg.size()))
+            .ok());
+    ASSERT_TRUE((*w)->close().ok());
+  }
+  r = hc::testing::run_command((hc::testing::bin_dir() / "hardcopy").string() +
+                               fmt::format(" track {} --calib {} --template {} -o {} 2>&1",
+                                           no_cams.string(), calib.string(),
+                                           (dir_->path() / "block").string(), bad_out.string()));
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_NE(r.out.find("no camera channel"), std::string::npos) << r.out;
+  EXPECT_FALSE(std::filesystem::exists(bad_out));
 }
 
 }  // namespace

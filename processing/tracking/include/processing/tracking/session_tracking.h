@@ -37,6 +37,7 @@
 #include <vector>
 
 #include "calibration/cameras/camera_model.h"
+#include "common/progress.h"
 #include "common/status.h"
 #include "common/tet_mesh.h"
 #include "processing/markers/dots.h"
@@ -77,8 +78,9 @@ struct SessionDetections {
 
 struct SessionReadOptions {
   markers::BlobOptions blobs;
-  std::size_t max_steps = 0;  // 0: all
-  int threads = 0;            // detection threads (0: TBB's default)
+  std::size_t max_steps = 0;             // 0: all
+  int threads = 0;                       // detection threads (0: TBB's default)
+  ProgressReporter* progress = nullptr;  // frames detected (null: none)
 };
 
 // Reads a session's steps and detects the dots of every step frame. Errors (kInvalidArgument):
