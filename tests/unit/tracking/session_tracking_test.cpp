@@ -23,9 +23,13 @@ class SimulatedPress : public ::testing::Test {
   static void SetUpTestSuite() {
     dir_ = new ScratchDir();
     rig_yaml_ = new std::string(testing::hires_rig_yaml());
-    session_ = new std::filesystem::path(
-        testing::record_session(dir_->path(), *rig_yaml_, testing::press_plan_yaml(30, 15.0)));
-    calibration_ = new calib::RigCalibration(testing::true_calibration(*rig_yaml_));
+    Result<std::filesystem::path> session =
+        testing::record_session(dir_->path(), *rig_yaml_, testing::press_plan_yaml(30, 15.0));
+    EXPECT_TRUE(session.ok()) << session.status().to_string();
+    session_ = new std::filesystem::path(session.ok() ? *session : std::filesystem::path());
+    Result<calib::RigCalibration> cal = testing::true_calibration(*rig_yaml_);
+    EXPECT_TRUE(cal.ok()) << cal.status().to_string();
+    calibration_ = new calib::RigCalibration(cal.ok() ? *cal : calib::RigCalibration());
   }
   static void TearDownTestSuite() {
     delete session_;

@@ -5,7 +5,6 @@
 #pragma once
 
 #include <fmt/format.h>
-#include <gtest/gtest.h>
 
 #include <cmath>
 #include <filesystem>
@@ -55,41 +54,32 @@ inline std::string press_plan_yaml(int steps, double force_n, double x = 0.0, do
       x, y, force_n, steps);
 }
 
-// Records a session; returns its path (empty on failure, with gtest failures).
-inline std::filesystem::path record_session(const std::filesystem::path& dir,
-                                            const std::string& rig_yaml,
-                                            const std::string& plan_yaml) {
-  Result<rig::RigConfig> cfg = rig::parse_rig_config(rig_yaml, "rig.yaml");
-  EXPECT_TRUE(cfg.ok()) << cfg.status().to_string();
-  if (!cfg.ok()) return {};
-  cfg->sessions_dir = dir;
+// Records a session; returns its path.
+inline Result<std::filesystem::path> record_session(const std::filesystem::path& dir,
+                                                    const std::string& rig_yaml,
+                                                    const std::string& plan_yaml) {
+  HC_ASSIGN_OR_RETURN(rig::RigConfig cfg, rig::parse_rig_config(rig_yaml, "rig.yaml"));
+  cfg.sessions_dir = dir;
   rig::Daemon::Options o;
-  o.config = *cfg;
+  o.config = cfg;
   o.clock = std::make_shared<devices::SimulatedClock>(1'000'000'000);
   o.software_version = "test";
-  Result<std::unique_ptr<rig::Daemon>> d = rig::Daemon::create(o);
-  EXPECT_TRUE(d.ok()) << d.status().to_string();
-  if (!d.ok()) return {};
-  Result<rig::Plan> plan = rig::parse_plan(plan_yaml, "plan.yaml");
-  EXPECT_TRUE(plan.ok()) << plan.status().to_string();
-  if (!plan.ok()) return {};
-  Result<Json> started = (*d)->start(*plan);
-  EXPECT_TRUE(started.ok()) << started.status().to_string();
-  if (!started.ok()) return {};
-  EXPECT_TRUE((*d)->wait_idle(600000));
-  const Json s = (*d)->last_summary();
-  EXPECT_EQ(s["state"], "finished") << s.dump(2);
-  if (!s.contains("session")) return {};
-  return s["session"].get<std::string>();
+  HC_ASSIGN_OR_RETURN(std::unique_ptr<rig::Daemon> d, rig::Daemon::create(o));
+  HC_ASSIGN_OR_RETURN(rig::Plan plan, rig::parse_plan(plan_yaml, "plan.yaml"));
+  HC_ASSIGN_OR_RETURN(Json started, d->start(plan));
+  (void)started;
+  if (!d->wait_idle(1800000)) return internal_error("the session did not finish");
+  const Json s = d->last_summary();
+  if (s["state"] != "finished" || !s.contains("session"))
+    return internal_error("session not finished: " + s.dump());
+  return std::filesystem::path(s["session"].get<std::string>());
 }
 
 // The true calibration of the rig config's cameras (world frame = rig frame).
-inline calib::RigCalibration true_calibration(const std::string& rig_yaml) {
+inline Result<calib::RigCalibration> true_calibration(const std::string& rig_yaml) {
   calib::RigCalibration rig;
-  Result<Config> cfg = parse_config(rig_yaml, "rig.yaml");
-  EXPECT_TRUE(cfg.ok());
-  if (!cfg.ok()) return rig;
-  Status st = read_config(*cfg, [&](ConfigNode root) -> Status {
+  HC_ASSIGN_OR_RETURN(Config cfg, parse_config(rig_yaml, "rig.yaml"));
+  Status st = read_config(cfg, [&](ConfigNode root) -> Status {
     root.allow_unknown_keys();
     std::optional<ConfigNode> devs = root.find("devices");
     if (!devs) return invalid_argument("no devices");
@@ -117,7 +107,7 @@ inline calib::RigCalibration true_calibration(const std::string& rig_yaml) {
     }
     return {};
   });
-  EXPECT_TRUE(st.ok()) << st.to_string();
+  HC_RETURN_IF_ERROR(st);
   return rig;
 }
 
