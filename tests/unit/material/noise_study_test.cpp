@@ -15,7 +15,8 @@
 namespace hc::material {
 namespace {
 
-constexpr double kNoisyRegularization = 1e-3;
+constexpr double kNoisyRegularization = 0.01;
+constexpr double kPoissonPrior = 0.1;
 constexpr int kExamples = 9;
 
 testing::HyperelasticReference three_layers() {
@@ -51,15 +52,16 @@ void run_noise_study(const double (&bound)[4]) {
   for (int k = 0; k < 4; ++k) {
     const Samples noisy = add_displacement_noise(*clean, noise[k], 2026);
     HeterogeneousFitOptions options;
-    // Noise-free: weak smoothing, rich basis. Noisy: stronger smoothing, a small basis and a high
-    // stiffness floor, so that the RBF does not interpolate the noise of per-example parameters.
+    // Noise-free: weak smoothing, rich basis. Noisy: Tikhonov weight growing with the noise
+    // variance (γ = 0.01 σ², σ as a fraction of the max displacement), a small basis, and a weak
+    // prior on Poisson's ratio, which displacement data hardly identify (see fit.h).
     if (noise[k] == 0) {
       options.parameters.regularization = 1e-8;
       options.rbf.tolerance = 0.02;
     } else {
-      options.parameters.regularization = kNoisyRegularization;
+      options.parameters.regularization = kNoisyRegularization * noise[k] * noise[k];
+      options.parameters.poisson_prior = kPoissonPrior;
       options.rbf.max_basis = 3;
-      options.rbf.lambda_floor_fraction = 0.9;
     }
     HeterogeneousFitSummary fs;
     Result<Material> m = fit_heterogeneous(noisy, options, &fs);
@@ -76,9 +78,9 @@ void run_noise_study(const double (&bound)[4]) {
   }
 }
 
-// Regression bounds: what this implementation reaches today (measured 0.80 %, 3.50 %, 3.93 %,
-// 4.45 % on this setup), with a small margin. NOT yet the thesis's numbers — see below.
-TEST(NoiseStudy, ErrorsWithinMeasuredBounds) { run_noise_study({0.010, 0.040, 0.045, 0.050}); }
+// Regression bounds: the thesis's values at 0 % and 30 % noise, what this implementation reaches
+// today at 10 % and 20 % (measured 0.10 %, 3.13 %, 3.70 %, 4.24 %) with a small margin.
+TEST(NoiseStudy, ErrorsWithinMeasuredBounds) { run_noise_study({0.003, 0.035, 0.041, 0.044}); }
 
 // The acceptance criterion (thesis Sec. 4.5: 0.3 %, 2.1 %, 3.1 %, 4.4 %). Disabled because
 // it does not pass yet (see the measured values above); run with --gtest_also_run_disabled_tests.

@@ -90,6 +90,13 @@ struct ParameterFitOptions {
   double parameter_tolerance = 1e-8;  // stop when ‖Δq‖ ≤ tol (‖q‖ + tol)
   double max_poisson = kDefaultMaxPoisson;
   double initial_poisson = 0.3;
+  // Weak prior pulling each element's logit(ν/ν_max) towards that of initial_poisson: adds
+  // poisson_prior · Σ_e (q1_e − q1_prior)² to the cost (dimensionless like γ). Poisson's ratio is
+  // poorly identified by displacement data (E, not ν, sets the indentation depth), and with noisy
+  // displacements the unregularised ν runs to the ends of its range, where λ = E/((1+ν)(1−2ν))
+  // varies by 20× for the same E and the strain-space RBF of (λ, α) then mixes incompatible
+  // samples. 0 turns it off.
+  double poisson_prior = 0;
   // Own LM: dense normal equations up to this many parameters, matrix-free preconditioned CG above.
   int dense_parameter_limit = 2500;
   int cg_max_iterations = 400;
@@ -118,7 +125,8 @@ Result<LambdaAlpha> fit_homogeneous(std::vector<ExampleProblem*> problems,
                                     ParameterFitSummary* summary = nullptr);
 
 // Fits per-element parameters to one example (Eq. 4.10), starting from `initial` (size #T, or 1
-// for uniform). On return `*params` holds the estimate (physically valid).
+// for uniform; a start with ν outside [0.1, 0.9]·max_poisson is moved to that range's end). On
+// return `*params` holds the estimate (physically valid).
 Status fit_example(ExampleProblem* problem, const std::vector<LambdaAlpha>& initial,
                    const ParameterFitOptions& options, std::vector<LambdaAlpha>* params,
                    ParameterFitSummary* summary = nullptr);
