@@ -1,0 +1,199 @@
+#include "calibration/arm/hand_eye_session.h"
+
+#include <fmt/format.h>
+
+#include <algorithm>
+#include <chrono>
+#include <map>
+
+#include "common/json.h"
+#include "processing/tracking/session_tracking.h"
+#include "processing/tracking/tracker.h"
+#include "rig_daemon/daemon/session_layout.h"
+#include "rig_daemon/devices/codec.h"
+#include "rig_daemon/recording/mcap_reader.h"
+#include "rig_daemon/recording/session_conventions.h"
+
+namespace hc::calib {
+namespace {
+
+namespace rec = hc::recording;
+
+struct ArmSample {
+  std::int64_t t_ns;
+  devices::ArmPose pose;
+};
+
+}  // namespace
+
+Result<HandEyeSessionData> read_hand_eye_session(const std::filesystem::path& session,
+                                                 const RigCalibration& calibration,
+                                                 const HandEyeSessionOptions& options) {
+  const std::string name = session.string();
+  // Arm states and shaft-marker truth first (cheap, and a session without an arm fails fast).
+  HC_ASSIGN_OR_RETURN(rec::McapReader reader, rec::McapReader::open(session));
+  const rec::Channel* arm = nullptr;
+  for (const auto& [id, ch] : reader.channels()) {
+    const auto k = ch.metadata.find("kind");
+    const auto d = ch.metadata.find("device");
+    if (k == ch.metadata.end() || k->second != "arm") continue;
+    if (ch.topic.size() < 6 || ch.topic.substr(ch.topic.size() - 6) != "/state") continue;
+    if (!options.arm_device.empty() && (d == ch.metadata.end() || d->second != options.arm_device))
+      continue;
+    arm = &ch;
+    break;
+  }
+  if (!arm)
+    return invalid_argument(fmt::format(
+        "{}: no arm state channel{} (hand-eye needs the arm's "
+        "poses; record with the automated protocol)",
+        name, options.arm_device.empty() ? "" : " of device '" + options.arm_device + "'"));
+  std::vector<ArmSample> states;
+  std::map<std::uint64_t, std::array<Eigen::Vector3d, 2>> truth;  // trigger index -> markers
+  rec::ReadOptions ro;
+  ro.topics = {arm->topic};
+  const rec::Channel* gt = reader.find_channel(hc::rig::kGroundTruthTopic);
+  if (gt) ro.topics.push_back(gt->topic);
+  Status error;
+  HC_RETURN_IF_ERROR(reader.read_messages(ro, [&](const rec::MessageEvent& e) {
+    if (e.channel->id == arm->id) {
+      Result<devices::ArmState> s = devices::arm_state_from_json(
+          {reinterpret_cast<const char*>(e.message.data.data()), e.message.data.size()});
+      if (!s.ok()) {
+        error = s.status().with_context(
+            fmt::format("{}: {} sequence {}", name, arm->topic, e.message.sequence));
+        return false;
+      }
+      states.push_back({s->host_ns, s->pose});
+      return true;
+    }
+    Result<Json> j = rec::parse_json_message(e.message.data);
+    if (!j.ok() || !j->is_object()) return true;  // truth is optional: skip what we cannot use
+    const auto ti = j->find("trigger_index");
+    const auto sm = j->find("shaft_markers_m");
+    if (ti == j->end() || !ti->is_number_unsigned() || sm == j->end() || !sm->is_array() ||
+        sm->size() != 2)
+      return true;
+    std::array<Eigen::Vector3d, 2> m;
+    for (std::size_t k = 0; k < 2; ++k) {
+      const Json& p = (*sm)[k];
+      if (!p.is_array() || p.size() != 3 || !p[0].is_number() || !p[1].is_number() ||
+          !p[2].is_number())
+        return true;
+      m[k] = Eigen::Vector3d(p[0].get<double>(), p[1].get<double>(), p[2].get<double>());
+    }
+    truth[ti->get<std::uint64_t>()] = m;
+    return true;
+  }));
+  HC_RETURN_IF_ERROR(error);
+  if (states.empty())
+    return invalid_argument(fmt::format("{}: {}: no arm states", name, arm->topic));
+  std::stable_sort(states.begin(), states.end(),
+                   [](const ArmSample& a, const ArmSample& b) { return a.t_ns < b.t_ns; });
+
+  tracking::SessionReadOptions so;
+  so.max_steps = options.max_steps;
+  HC_ASSIGN_OR_RETURN(tracking::SessionDetections det,
+                      tracking::read_session_detections(session, calibration, so));
+  HandEyeSessionData out;
+  out.problem.markers = 2;
+  out.steps = det.steps.size();
+  bool all_by_specimen = true;
+  for (const tracking::SessionStep& st : det.steps) {
+    const auto it = std::upper_bound(states.begin(), states.end(), st.edge_host_ns,
+                                     [](std::int64_t t, const ArmSample& a) { return t < a.t_ns; });
+    if (it == states.begin()) continue;  // no arm state yet
+    const devices::ArmPose& pose = std::prev(it)->pose;
+    Result<std::vector<tracking::MatchedPoint>> pts =
+        tracking::match_views(det.cameras, st.detections);
+    if (!pts.ok()) return pts.status().with_context(name);
+    std::vector<Eigen::Vector3d> isolated, rest;
+    for (std::size_t a = 0; a < pts->size(); ++a) {
+      double nn = std::numeric_limits<double>::infinity();
+      for (std::size_t b = 0; b < pts->size(); ++b)
+        if (a != b) nn = std::min(nn, ((*pts)[a].point_m - (*pts)[b].point_m).norm());
+      (nn > options.isolation_m ? isolated : rest).push_back((*pts)[a].point_m);
+    }
+    if (isolated.size() != 2) continue;
+    if (!rest.empty()) {
+      Eigen::Vector3d c = Eigen::Vector3d::Zero();
+      for (const auto& p : rest) c += p;
+      c /= static_cast<double>(rest.size());
+      if ((isolated[1] - c).norm() < (isolated[0] - c).norm()) std::swap(isolated[0], isolated[1]);
+    } else {
+      all_by_specimen = false;
+    }
+    const std::size_t pose_index = out.problem.world_from_tool.size();
+    out.problem.world_from_tool.push_back(
+        arm_pose_transform(pose.x_m, pose.y_m, pose.z_m, pose.yaw_rad));
+    const auto tr = truth.find(st.trigger_index);
+    for (std::size_t j = 0; j < 2; ++j) {
+      out.problem.observations.push_back({pose_index, j, isolated[j]});
+      if (tr != truth.end())
+        out.truth_world_m.emplace_back(tr->second[j]);
+      else
+        out.truth_world_m.emplace_back(std::nullopt);
+    }
+    ++out.steps_used;
+  }
+  out.markers_ordered_by_specimen = all_by_specimen && out.steps_used > 0;
+  return out;
+}
+
+Json HandEyeSessionResult::to_json() const {
+  Json j = solution.to_json();
+  j["steps"] = steps;
+  j["steps_used"] = steps_used;
+  if (has_truth) {
+    j["truth_rms_error_m"] = truth_rms_m;
+    j["truth_max_error_m"] = truth_max_m;
+  }
+  return j;
+}
+
+Result<HandEyeSessionResult> calibrate_hand_eye_from_session(const std::filesystem::path& session,
+                                                             const RigCalibration& calibration,
+                                                             const HandEyeSessionOptions& options) {
+  HC_ASSIGN_OR_RETURN(HandEyeSessionData data,
+                      read_hand_eye_session(session, calibration, options));
+  HandEyeOptions ho = options.solver;
+  ho.marker0_tool_z_m = options.marker0_tool_z_m;
+  Result<HandEyeResult> best = solve_hand_eye(data.problem, ho);
+  if (!data.markers_ordered_by_specimen) {
+    // Without specimen dots the two markers' order is unknown: try the swapped labelling.
+    HandEyeProblem swapped = data.problem;
+    for (auto& o : swapped.observations) o.marker = 1 - o.marker;
+    Result<HandEyeResult> other = solve_hand_eye(swapped, ho);
+    if (other.ok() && (!best.ok() || other->rms_m < best->rms_m)) {
+      best = std::move(other);
+      data.problem = std::move(swapped);
+      for (std::size_t k = 0; k + 1 < data.truth_world_m.size(); k += 2)
+        std::swap(data.truth_world_m[k], data.truth_world_m[k + 1]);
+    }
+  }
+  if (!best.ok())
+    return best.status().with_context(fmt::format("{}: {} of {} steps had both shaft markers",
+                                                  session.string(), data.steps_used, data.steps));
+  HandEyeSessionResult out;
+  out.solution = *best;
+  out.steps = data.steps;
+  out.steps_used = data.steps_used;
+  double ss = 0.0;
+  std::size_t n = 0;
+  for (std::size_t k = 0; k < data.problem.observations.size(); ++k) {
+    if (!data.truth_world_m[k]) continue;
+    const double e = (out.solution.world_from_rig * data.problem.observations[k].p_rig_m -
+                      *data.truth_world_m[k])
+                         .norm();
+    ss += e * e;
+    out.truth_max_m = std::max(out.truth_max_m, e);
+    ++n;
+  }
+  if (n > 0) {
+    out.has_truth = true;
+    out.truth_rms_m = std::sqrt(ss / static_cast<double>(n));
+  }
+  return out;
+}
+
+}  // namespace hc::calib
