@@ -84,12 +84,22 @@ Status ProbeLocation::read(ConfigNode node) {
 }
 
 std::string_view to_string(Protocol p) {
-  return p == Protocol::kHandHeld ? "hand_held" : "automated";
+  switch (p) {
+    case Protocol::kHandHeld:
+      return "hand_held";
+    case Protocol::kAutomated:
+      return "automated";
+    case Protocol::kCalibration:
+      return "calibration";
+  }
+  return "unknown";
 }
 
 Status Plan::read(ConfigNode node) {
   node.required("protocol", protocol,
-                {{"hand_held", Protocol::kHandHeld}, {"automated", Protocol::kAutomated}});
+                {{"hand_held", Protocol::kHandHeld},
+                 {"automated", Protocol::kAutomated},
+                 {"calibration", Protocol::kCalibration}});
   node.optional("name", name);
   node.optional("description", description);
   node.optional("specimen", specimen);
@@ -110,6 +120,30 @@ Status Plan::read(ConfigNode node) {
     node.required("duration_s", p.duration_s, Bounds{0.0, 3600.0, true, false});
     node.required("cameras", p.cameras);
     node.optional("fsr", p.fsr);
+  } else if (protocol == Protocol::kCalibration) {
+    CalibrationPlan& p = calibration;
+    if (std::optional<ConfigNode> b = node.find("board")) {
+      // Inner corners (OpenCV's pattern size); 64 bounds the rendering work per frame.
+      b->required("cols", p.board_cols, Bounds::between(2, 64));
+      b->required("rows", p.board_rows, Bounds::between(2, 64));
+      b->required("square_m", p.square_m, Bounds{0.0, 1.0, true, false});
+      b->optional("margin_squares", p.margin_squares, Bounds::between(0.0, 10.0));
+    } else {
+      node.error("board", "required: {cols, rows, square_m}");
+    }
+    // 1000 poses is far more than any calibration needs (issue 5: 30) and bounds the session.
+    node.required("poses", p.poses, Bounds::between(1, 1000));
+    node.optional("seed", p.seed);
+    node.optional("dwell_s", p.dwell_s, Bounds::between(0.0, 60.0));
+    node.optional("max_tilt_deg", p.max_tilt_deg, Bounds::between(0.0, 80.0));
+    node.required("cameras", p.cameras);
+    if (std::optional<ConfigNode> t = node.find("trigger")) {
+      t->optional("rate_hz", p.trigger.rate_hz, Bounds{0.0, 1000.0, true, false});
+      t->optional("pulse_width_s", p.trigger.pulse_width_s, Bounds{1e-6, 0.1, false, false});
+    }
+    node.optional("trigger_device", p.trigger_device);
+    if (node.status().ok() && p.cameras.empty())
+      node.error("cameras", "expected at least one camera");
   } else {
     AutomatedPlan& p = automated;
     node.required("locations", p.locations);
@@ -151,8 +185,9 @@ Status Plan::read(ConfigNode node) {
       }
     }
   }
-  for (const std::string& c :
-       protocol == Protocol::kHandHeld ? hand_held.cameras : automated.cameras) {
+  for (const std::string& c : protocol == Protocol::kHandHeld      ? hand_held.cameras
+                              : protocol == Protocol::kCalibration ? calibration.cameras
+                                                                   : automated.cameras) {
     if (c.empty()) node.error("cameras", "expected device names, got an empty one");
   }
   return node.status();
@@ -169,6 +204,19 @@ Json Plan::to_json() const {
     j["duration_s"] = hand_held.duration_s;
     j["cameras"] = hand_held.cameras;
     j["fsr"] = hand_held.fsr;
+  } else if (protocol == Protocol::kCalibration) {
+    const CalibrationPlan& p = calibration;
+    j["board"] = {{"cols", p.board_cols},
+                  {"rows", p.board_rows},
+                  {"square_m", p.square_m},
+                  {"margin_squares", p.margin_squares}};
+    j["poses"] = p.poses;
+    j["seed"] = p.seed;
+    j["dwell_s"] = p.dwell_s;
+    j["max_tilt_deg"] = p.max_tilt_deg;
+    j["cameras"] = p.cameras;
+    j["trigger"] = {{"pulse_width_s", p.trigger.pulse_width_s}};
+    j["trigger_device"] = p.trigger_device;
   } else {
     const AutomatedPlan& p = automated;
     Json locs = Json::array();
@@ -197,6 +245,7 @@ Json Plan::to_json() const {
 std::int64_t Plan::expected_triggers() const {
   if (protocol == Protocol::kHandHeld)
     return static_cast<std::int64_t>(std::floor(hand_held.duration_s * hand_held.trigger.rate_hz));
+  if (protocol == Protocol::kCalibration) return calibration.poses;
   return static_cast<std::int64_t>(automated.locations.size() * automated.force_levels_n.size()) *
          automated.steps * automated.frames_per_step;
 }

@@ -7,6 +7,7 @@
 
 #include "rig_daemon/daemon/session_layout.h"
 #include "rig_daemon/devices/codec.h"
+#include "rig_daemon/devices/sim_scene.h"
 #include "rig_daemon/recording/foxglove_image.h"
 #include "rig_daemon/recording/session_conventions.h"
 
@@ -64,7 +65,8 @@ std::string_view kStepSchema =
     R"({"type":"object","title":"hardcopy.Step","properties":{)"
     R"("host_ns":{"type":"integer"},"location":{"type":"integer"},"level":{"type":"integer"},)"
     R"("step":{"type":"integer"},"target_force_n":{"type":"number"},"force_n":{"type":"number"},)"
-    R"("depth_m":{"type":"number"},"pose":{"type":"object"},"trigger_indices":{"type":"array","items":{"type":"integer"}}}})";
+    R"("depth_m":{"type":"number"},"pose":{"type":"object"},"trigger_indices":{"type":"array","items":{"type":"integer"}},)"
+    R"("board_pose":{"type":"integer","description":"calibration: index of the board pose"}}})";
 std::string_view kEventSchema =
     R"({"type":"object","title":"hardcopy.Event","properties":{)"
     R"("host_ns":{"type":"integer"},"kind":{"type":"string"},"message":{"type":"string"}}})";
@@ -130,7 +132,8 @@ struct Session::Impl {
   std::vector<std::uint16_t> ch_cams;
   std::uint16_t ch_sync = 0, ch_steps = 0, ch_events = 0, ch_truth = 0;
   bool have_truth = false;
-  std::set<std::string> session_cameras;  // names, for the per-camera truth
+  std::optional<dev::sim::BoardShow> board_show;  // calibration on a simulated rig
+  std::set<std::string> session_cameras;          // names, for the per-camera truth
 
   // Control flags (any thread).
   std::atomic<bool> stop_requested{false};
@@ -181,8 +184,9 @@ struct Session::Impl {
   Status run_hand_held();
   Status run_replay();
   Status run_automated();
+  Status run_calibration();
   Status move_to(const dev::ArmPose& pose, double speed);
-  Status fire_and_collect(std::vector<std::uint64_t>& indices);
+  Status fire_and_collect(std::vector<std::uint64_t>& indices, int pulses);
   double current_force() const;
   void record_arm_state(const dev::ArmState& s);
   Json finish(Status run_status);
@@ -205,6 +209,16 @@ Status Session::validate(const Rig& rig, const Plan& plan) {
     for (const std::string& c : plan.hand_held.cameras)
       HC_RETURN_IF_ERROR(need(c, DeviceKind::kCamera, "camera"));
     HC_RETURN_IF_ERROR(need(plan.hand_held.fsr, DeviceKind::kFsr, "fsr"));
+    if (cfg.first(DeviceKind::kTrigger) == nullptr)
+      return invalid_argument("plan '" + plan.name + "': the rig has no trigger device");
+    return {};
+  }
+  if (plan.protocol == Protocol::kCalibration) {
+    const CalibrationPlan& c = plan.calibration;
+    for (const std::string& cam : c.cameras)
+      HC_RETURN_IF_ERROR(need(cam, DeviceKind::kCamera, "camera"));
+    if (!c.trigger_device.empty())
+      return need(c.trigger_device, DeviceKind::kTrigger, "trigger_device");
     if (cfg.first(DeviceKind::kTrigger) == nullptr)
       return invalid_argument("plan '" + plan.name + "': the rig has no trigger device");
     return {};
@@ -263,6 +277,14 @@ Status Session::Impl::setup() {
     trigger = rig.get<dev::Trigger>(cfg.first(DeviceKind::kTrigger)->name);
     fsr = rig.get<dev::Fsr>(plan.hand_held.fsr);
     ao.want_fsr = true;
+    HC_ASSIGN_OR_RETURN(SafetyLimits limits, combine_limits(cfg.workspace, cfg.max_force_n,
+                                                            cfg.stall_timeout_s, nullptr, nullptr));
+    safety = std::make_unique<SafetyMonitor>(limits);
+  } else if (plan.protocol == Protocol::kCalibration) {
+    const CalibrationPlan& p = plan.calibration;
+    cam_names = p.cameras;
+    trigger = rig.get<dev::Trigger>(p.trigger_device.empty() ? cfg.first(DeviceKind::kTrigger)->name
+                                                             : p.trigger_device);
     HC_ASSIGN_OR_RETURN(SafetyLimits limits, combine_limits(cfg.workspace, cfg.max_force_n,
                                                             cfg.stall_timeout_s, nullptr, nullptr));
     safety = std::make_unique<SafetyMonitor>(limits);
@@ -383,6 +405,51 @@ Status Session::Impl::setup() {
   }
   HC_RETURN_IF_ERROR(
       recorder->write_metadata_now(rec::kMetadataCalibration, {{"json", calib.dump()}}));
+  if (rig.world() != nullptr) {
+    // The true parameters of the session's simulated cameras (session_layout.h).
+    Json sim_cams = Json::object();
+    for (const dev::sim::CameraRecord& r : rig.world()->cameras()) {
+      if (!session_cameras.count(r.name)) continue;
+      const dev::sim::PinholeCamera& c = r.camera;
+      sim_cams[r.name] = {{"width", c.width},
+                          {"height", c.height},
+                          {"fx", c.fx},
+                          {"fy", c.fy},
+                          {"cx", c.cx},
+                          {"cy", c.cy},
+                          {"distortion", c.distortion},
+                          {"R", mat_json(c.R_cam_world)},
+                          {"t_m", vec_json(c.t_cam_world)},
+                          {"center_m", vec_json(c.center_world())}};
+    }
+    HC_RETURN_IF_ERROR(
+        recorder->write_metadata_now(kMetadataSimCameras, {{"json", sim_cams.dump()}}));
+    if (plan.protocol == Protocol::kCalibration) {
+      const CalibrationPlan& p = plan.calibration;
+      dev::sim::BoardShow show;
+      show.spec.cols = p.board_cols;
+      show.spec.rows = p.board_rows;
+      show.spec.square_m = p.square_m;
+      show.spec.margin_squares = p.margin_squares;
+      dev::sim::BoardMotion motion;
+      motion.poses = p.poses;
+      motion.seed = p.seed;
+      motion.max_tilt_deg = p.max_tilt_deg;
+      const dev::sim::Specimen& spec = rig.world()->specimen();
+      const Eigen::Vector2d c = spec.footprint().center();
+      show.poses =
+          dev::sim::board_poses(show.spec, motion, Eigen::Vector3d(c.x(), c.y(), spec.top_z_m()));
+      show.dwell_ns = std::max<std::int64_t>(1, std::llround(p.dwell_s * 1e9));
+      Json poses = Json::array();
+      for (const dev::sim::BoardPose& b : show.poses)
+        poses.push_back({{"R", mat_json(b.R)}, {"t_m", vec_json(b.t)}});
+      const Json board{{"cols", p.board_cols},   {"rows", p.board_rows},
+                       {"square_m", p.square_m}, {"margin_squares", p.margin_squares},
+                       {"seed", p.seed},         {"poses", std::move(poses)}};
+      HC_RETURN_IF_ERROR(recorder->write_metadata_now(kMetadataSimBoard, {{"json", board.dump()}}));
+      board_show = std::move(show);
+    }
+  }
   recorder->start();
 
   if (have_truth) {
@@ -713,8 +780,8 @@ Status Session::Impl::move_to(const dev::ArmPose& pose, double speed) {
   return arm_error;
 }
 
-Status Session::Impl::fire_and_collect(std::vector<std::uint64_t>& indices) {
-  for (int f = 0; f < opts.plan.automated.frames_per_step; ++f) {
+Status Session::Impl::fire_and_collect(std::vector<std::uint64_t>& indices, int pulses) {
+  for (int f = 0; f < pulses; ++f) {
     const std::uint64_t before = edges_received;
     HC_RETURN_IF_ERROR(trigger->fire());
     HC_RETURN_IF_ERROR(
@@ -841,7 +908,7 @@ Status Session::Impl::run_automated() {
                                       "settling"));
         }
         std::vector<std::uint64_t> indices;
-        HC_RETURN_IF_ERROR(fire_and_collect(indices));
+        HC_RETURN_IF_ERROR(fire_and_collect(indices, p.frames_per_step));
         const std::int64_t now = clock().now_ns();
         Json step{{"host_ns", now},
                   {"location", li},
@@ -857,6 +924,36 @@ Status Session::Impl::run_automated() {
       // Retract before the next level or location.
       HC_RETURN_IF_ERROR(move_to(start, kApproachSpeedMps));
     }
+  }
+  return {};
+}
+
+Status Session::Impl::run_calibration() {
+  // One trigger pulse per board pose; between pulses the board moves (simulated rigs: the world
+  // shows the pose the frame's trigger index selects) or a technician moves it (dwell_s).
+  const CalibrationPlan& p = opts.plan.calibration;
+  if (board_show) {
+    board_show->first_trigger_index = rig.world()->pulses_by(clock().now_ns());
+    board_show->start_ns = clock().now_ns();
+    rig.world()->show_board(*board_show);
+  }
+  for (int k = 0; k < p.poses; ++k) {
+    HC_RETURN_IF_ERROR(pause_point());
+    {
+      std::lock_guard lock(progress_mutex);
+      step_text = "board pose " + std::to_string(k + 1) + "/" + std::to_string(p.poses);
+    }
+    if (p.dwell_s > 0.0) {
+      const auto dwell = static_cast<std::int64_t>(p.dwell_s * 1e9);
+      const std::int64_t until = clock().now_ns() + dwell;
+      HC_RETURN_IF_ERROR(wait_for([&] { return clock().now_ns() >= until; }, dwell + 1'000'000'000,
+                                  "the board to move"));
+    }
+    std::vector<std::uint64_t> indices;
+    HC_RETURN_IF_ERROR(fire_and_collect(indices, 1));
+    const std::int64_t now = clock().now_ns();
+    Json step{{"host_ns", now}, {"board_pose", k}, {"step", k + 1}, {"trigger_indices", indices}};
+    recorder->write(ch_steps, now, now, static_cast<std::uint32_t>(k + 1), rec::json_message(step));
   }
   return {};
 }
@@ -897,6 +994,7 @@ Json Session::Impl::finish(Status run_status) {
   for (dev::Device* d : used)
     if (d != trigger) (void)d->deactivate();
   if (have_truth) rig.world()->set_ground_truth_callback(nullptr);
+  if (board_show) rig.world()->hide_board();
 
   SessionState final_state = SessionState::kFinished;
   std::string reason = "completed";
@@ -975,9 +1073,10 @@ Result<Json> Session::run() {
   }
   state_ = SessionState::kRunning;
   m.update_progress(true);
-  Status s = m.rig.replay() != nullptr                     ? m.run_replay()
-             : m.opts.plan.protocol == Protocol::kHandHeld ? m.run_hand_held()
-                                                           : m.run_automated();
+  Status s = m.rig.replay() != nullptr                        ? m.run_replay()
+             : m.opts.plan.protocol == Protocol::kHandHeld    ? m.run_hand_held()
+             : m.opts.plan.protocol == Protocol::kCalibration ? m.run_calibration()
+                                                              : m.run_automated();
   Json summary = m.finish(s);
   if (m.opts.on_event) m.opts.on_event("finished", summary);
   return summary;

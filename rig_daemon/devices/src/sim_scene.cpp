@@ -513,10 +513,23 @@ std::size_t render_board(const PinholeCamera& cam, const BoardSpec& spec, const 
       bottom(static_cast<std::size_t>(cw));
   std::vector<long> top_cell(static_cast<std::size_t>(cw)),
       bottom_cell(static_cast<std::size_t>(cw));
+  // Exact rays every kStride corners, linear in between (as ProbeLayer::render).
+  constexpr int kStride = 8;
+  std::vector<Eigen::Vector3d> dirs(static_cast<std::size_t>(cw));
   const auto fill_edge = [&](double v, std::vector<Eigen::Vector2d>& pts,
                              std::vector<long>& cells) {
+    Eigen::Vector3d prev = rc.dir(x0 - 0.5, v);
+    dirs[0] = prev;
+    for (int i0 = 0; i0 < cw - 1; i0 += kStride) {
+      const int i1 = std::min(cw - 1, i0 + kStride);
+      const Eigen::Vector3d next = rc.dir(x0 - 0.5 + i1, v);
+      for (int i = i0 + 1; i <= i1; ++i)
+        dirs[static_cast<std::size_t>(i)] =
+            prev + (next - prev) * (static_cast<double>(i - i0) / (i1 - i0));
+      prev = next;
+    }
     for (int i = 0; i < cw; ++i) {
-      pts[static_cast<std::size_t>(i)] = plane(rc.dir(x0 - 0.5 + i, v));
+      pts[static_cast<std::size_t>(i)] = plane(dirs[static_cast<std::size_t>(i)]);
       classify(pts[static_cast<std::size_t>(i)], cells[static_cast<std::size_t>(i)]);
     }
   };

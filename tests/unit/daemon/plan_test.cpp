@@ -38,6 +38,31 @@ TEST(Plan, ExampleHandHeldPlanReads) {
   EXPECT_EQ(plan->expected_triggers(), 20);  // 5 Hz x 4 s
 }
 
+TEST(Plan, ExampleCalibrationPlanReads) {
+  Result<Plan> plan = load_plan(example("calibration_board.yaml"));
+  ASSERT_TRUE(plan.ok()) << plan.status().to_string();
+  EXPECT_EQ(plan->protocol, Protocol::kCalibration);
+  const CalibrationPlan& c = plan->calibration;
+  EXPECT_EQ(c.board_cols, 8);
+  EXPECT_EQ(c.board_rows, 6);
+  EXPECT_DOUBLE_EQ(c.square_m, 0.008);
+  EXPECT_EQ(c.poses, 20);
+  EXPECT_EQ(c.seed, 3u);
+  EXPECT_EQ(c.cameras.size(), 7u);
+  EXPECT_EQ(plan->expected_triggers(), 20);  // one pulse per pose
+  const Json j = plan->to_json();
+  EXPECT_EQ(j["protocol"], "calibration");
+  EXPECT_EQ(j["board"]["rows"], 6);
+}
+
+TEST(Plan, ExampleTrackingPlanReads) {
+  Result<Plan> plan = load_plan(example("automated_track.yaml"));
+  ASSERT_TRUE(plan.ok()) << plan.status().to_string();
+  EXPECT_EQ(plan->protocol, Protocol::kAutomated);
+  EXPECT_EQ(plan->automated.locations.size(), 1u);
+  EXPECT_EQ(plan->expected_triggers(), 30);  // the thesis's minimum of 30 steps, one level
+}
+
 TEST(Plan, DirectionIsNormalised) {
   Result<Plan> plan = parse_plan(R"(protocol: automated
 locations: [{position_m: [0, 0, 0.05], direction: [0, 3, -4]}]
@@ -128,6 +153,27 @@ INSTANTIATE_TEST_SUITE_P(
                 "locations: [{position_m: [0, 0, 0.05], direction: [0, 0, 0]}]\n",
                 "locations[0].direction: expected a non-zero vector"},
         BadPlan{"bad_name", "protocol: hand_held\nname: ../etc\n", "name: expected 1-128"},
+        BadPlan{"calibration_no_board", "protocol: calibration\nposes: 10\ncameras: [c]\n",
+                "bad.yaml:1: board: required"},
+        BadPlan{"calibration_no_poses",
+                "protocol: calibration\nboard: {cols: 9, rows: 6, square_m: 0.01}\ncameras: [c]\n",
+                "bad.yaml:1: poses: required key is missing"},
+        BadPlan{"calibration_tiny_board",
+                "protocol: calibration\nboard: {cols: 1, rows: 6, square_m: 0.01}\nposes: 5\n"
+                "cameras: [c]\n",
+                "bad.yaml:2: board.cols: expected an integer in [2, 64]"},
+        BadPlan{"calibration_square_zero",
+                "protocol: calibration\nboard: {cols: 9, rows: 6, square_m: 0}\nposes: 5\n"
+                "cameras: [c]\n",
+                "board.square_m: expected a number in (0, 1]"},
+        BadPlan{"calibration_no_cameras",
+                "protocol: calibration\nboard: {cols: 9, rows: 6, square_m: 0.01}\nposes: 5\n"
+                "cameras: []\n",
+                "cameras: expected at least one camera"},
+        BadPlan{"calibration_too_many_poses",
+                "protocol: calibration\nboard: {cols: 9, rows: 6, square_m: 0.01}\nposes: 5000\n"
+                "cameras: [c]\n",
+                "bad.yaml:3: poses: expected an integer in [1, 1000]"},
         BadPlan{"not_yaml", "protocol: [hand_held\n", "invalid YAML"}),
     [](const ::testing::TestParamInfo<BadPlan>& p) { return std::string(p.param.name); });
 

@@ -7,7 +7,10 @@
 #include <cmath>
 #include <cstdint>
 
+#include <Eigen/Core>
+
 #include "rig_daemon/daemon/daemon.h"
+#include "rig_daemon/recording/foxglove_image.h"
 #include "session_support.h"
 #include "test_data.h"
 
@@ -326,6 +329,97 @@ TEST(Replay, ReRecordingAReplayReproducesTheMessages) {
       EXPECT_EQ(ma[i].data, mb[i].data) << topic << " " << i;
     }
   }
+}
+
+}  // namespace
+}  // namespace hc::rig
+
+namespace hc::rig {
+namespace {
+
+TEST(Session, CalibrationCaptureShowsTheBoardInEveryFrameSet) {
+  ScratchDir dir;
+  auto d = make_daemon(dir.path());
+  ASSERT_TRUE(d);
+  Result<Plan> plan = load_plan(example("calibration_board.yaml"));
+  ASSERT_TRUE(plan.ok()) << plan.status().to_string();
+  ASSERT_EQ(plan->protocol, Protocol::kCalibration);
+  EXPECT_EQ(plan->expected_triggers(), 20);
+  const Json s = run_plan(*d, *plan);
+  ASSERT_EQ(s["state"], "finished") << s.dump(2);
+  EXPECT_EQ(s["protocol"], "calibration");
+  const Json& a = s["association"];
+  EXPECT_EQ(a["edges"], 20) << a.dump();
+  EXPECT_EQ(a["edges_complete"], 20) << a.dump();
+  EXPECT_EQ(a["frames_associated"], 140) << a.dump();
+
+  const testing::SessionContents c = read_session(s["session"].get<std::string>());
+  // The plan metadata names the protocol.
+  const Result<Json> pj = parse_json(c.metadata.at("plan").at("json"), "plan");
+  ASSERT_TRUE(pj.ok());
+  EXPECT_EQ((*pj)["protocol"], "calibration");
+  EXPECT_EQ((*pj)["board"]["cols"], 8);
+  // The true cameras: the embedded default's cam0 at (0.3, 0, 0.3) looking at (0, 0, 0.05),
+  // f = 400 px, 320 x 240 (rig_config.cpp), so its centre and focal length come back exactly.
+  const Result<Json> cams =
+      parse_json(c.metadata.at(std::string(kMetadataSimCameras)).at("json"), "sim_cameras");
+  ASSERT_TRUE(cams.ok());
+  ASSERT_EQ(cams->size(), 7u);
+  const Json& cam0 = (*cams)["cam0"];
+  EXPECT_DOUBLE_EQ(cam0["fx"].get<double>(), 400.0);
+  EXPECT_EQ(cam0["width"], 320);
+  EXPECT_NEAR(cam0["center_m"][0].get<double>(), 0.3, 1e-12);
+  EXPECT_NEAR(cam0["center_m"][2].get<double>(), 0.3, 1e-12);
+  Eigen::Matrix3d R;
+  Eigen::Vector3d t;
+  for (int i = 0; i < 3; ++i) {
+    t(i) = cam0["t_m"][i].get<double>();
+    for (int j = 0; j < 3; ++j) R(i, j) = cam0["R"][i][j].get<double>();
+  }
+  EXPECT_NEAR((-R.transpose() * t - Eigen::Vector3d(0.3, 0.0, 0.3)).norm(), 0.0, 1e-12);
+  const Result<Json> board =
+      parse_json(c.metadata.at(std::string(kMetadataSimBoard)).at("json"), "sim_board");
+  ASSERT_TRUE(board.ok());
+  EXPECT_EQ((*board)["poses"].size(), 20u);
+
+  // 20 synchronised frame sets; each frame's truth names the board pose of its trigger, pose k
+  // for the k-th edge; every pose is visible to at least two cameras and some to a subset.
+  const auto& sync = c.by_topic.at(std::string(kSyncTopic));
+  ASSERT_EQ(sync.size(), 20u);
+  for (const testing::Msg& m : sync) EXPECT_EQ(json_of(m)["frames"].size(), 7u);
+  const auto& truths = c.by_topic.at(std::string(kGroundTruthTopic));
+  ASSERT_EQ(truths.size(), 20u);
+  std::uint64_t first = 0;
+  int subset = 0;
+  for (std::size_t k = 0; k < truths.size(); ++k) {
+    const Json j = json_of(truths[k]);
+    ASSERT_TRUE(j.contains("board")) << j.dump();
+    if (k == 0) first = j["trigger_index"].get<std::uint64_t>();
+    EXPECT_EQ(j["trigger_index"].get<std::uint64_t>(), first + k);
+    EXPECT_EQ(j["board"]["pose_index"], k);
+    EXPECT_TRUE(j["markers_m"].empty());  // no specimen in a calibration capture
+    EXPECT_FALSE(j["probe_shown"].get<bool>());
+    int seen = 0;
+    for (const auto& [name, cam] : j["cameras"].items()) seen += cam["board_visible"].get<bool>();
+    EXPECT_GE(seen, 2) << "pose " << k;
+    subset += seen < 7;
+  }
+  EXPECT_GE(subset, 2);
+  // The frames show the board: cam0's first frame has both black (25) and white (235) squares.
+  const auto& frames = c.by_topic.at(camera_topic("cam0"));
+  ASSERT_EQ(frames.size(), 20u);
+  const Result<recording::RawImage> img = recording::decode_raw_image(frames[0].data);
+  ASSERT_TRUE(img.ok());
+  std::size_t white = 0, black = 0;
+  for (std::uint8_t p : img->data) {
+    white += p == 235;
+    black += p == 25;
+  }
+  EXPECT_GT(white, 500u);
+  EXPECT_GT(black, 200u);
+
+  // The board is gone afterwards: an automated session's truth has markers again.
+  EXPECT_FALSE(d->rig().world()->board().has_value());
 }
 
 }  // namespace
