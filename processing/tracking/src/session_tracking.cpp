@@ -498,6 +498,34 @@ Result<TrackedSession> track_detections(const SessionDetections& in,
         query.push_back(nodes[n]);
         query_node.push_back(n);
       }
+    // The RBF system is dense (cubic in its centres): keep the measured markers nearest to where
+    // the fill matters — the unmeasured marker nodes and the probe — (options.max_fill_centres),
+    // which decide the filled markers; far invisible nodes only get a plausible smooth guess.
+    if (options.max_fill_centres > 0 && known_p.size() > options.max_fill_centres) {
+      std::vector<Eigen::Vector3d> focus;
+      for (std::size_t i = 0; i < kept.size(); ++i)
+        if (!r.measured[kept[i]])
+          focus.push_back(nodes[static_cast<std::size_t>(out.marker_node[i])]);
+      if (st.probe_tip_m) focus.push_back(reg->T * *st.probe_tip_m);
+      if (!focus.empty()) {
+        std::vector<std::pair<double, std::size_t>> order;
+        for (std::size_t i = 0; i < known_p.size(); ++i) {
+          double d = std::numeric_limits<double>::infinity();
+          for (const auto& f : focus) d = std::min(d, (known_p[i] - f).squaredNorm());
+          order.emplace_back(d, i);
+        }
+        std::nth_element(order.begin(),
+                         order.begin() + static_cast<std::ptrdiff_t>(options.max_fill_centres),
+                         order.end());
+        std::vector<Eigen::Vector3d> p2, d2;
+        for (std::size_t i = 0; i < options.max_fill_centres; ++i) {
+          p2.push_back(known_p[order[i].second]);
+          d2.push_back(known_d[order[i].second]);
+        }
+        known_p = std::move(p2);
+        known_d = std::move(d2);
+      }
+    }
     std::vector<Eigen::Vector3d> filled =
         interpolate_displacements(known_p, known_d, query, options.fill_regularization_m);
     // The probe is a constraint too: a smooth fill under-estimates the dimple the sphere presses

@@ -246,6 +246,7 @@ Result<StepResult> MarkerTracker::initialise(const FrameDetections& detections) 
   position_ = r.points_m;
   velocity_.assign(position_.size(), Eigen::Vector3d::Zero());
   birth_.assign(position_.size(), 0);
+  rest_ = position_;
   unmeasured_run_.assign(position_.size(), 0);
   retired_.assign(position_.size(), 0);
   step_ = 0;
@@ -340,22 +341,38 @@ Result<StepResult> MarkerTracker::track(const FrameDetections& detections) {
     StepResult still = attempt(position_);
     if (count(still) > count(best)) best = std::move(still);
   }
-  // Unmeasured markers move with the mean displacement of their 4 nearest measured ones.
-  std::vector<std::size_t> measured_ids;
-  for (std::size_t m = 0; m < nm; ++m)
-    if (best.measured[m]) measured_ids.push_back(m);
-  for (std::size_t m = 0; m < nm; ++m) {
-    if (best.measured[m]) continue;
-    std::vector<std::pair<double, std::size_t>> near;
-    for (std::size_t q : measured_ids)
-      near.emplace_back((position_[q] - position_[m]).squaredNorm(), q);
-    const std::size_t k = std::min<std::size_t>(4, near.size());
-    std::partial_sort(near.begin(), near.begin() + static_cast<std::ptrdiff_t>(k), near.end());
-    Eigen::Vector3d d = Eigen::Vector3d::Zero();
-    for (std::size_t i = 0; i < k; ++i)
-      d += best.points_m[near[i].second] - position_[near[i].second];
-    best.points_m[m] =
-        position_[m] + (k ? Eigen::Vector3d(d / static_cast<double>(k)) : Eigen::Vector3d::Zero());
+  // ... or the probe let go: the markers are back where they were first seen.
+  if (static_cast<double>(count(best)) < 0.95 * active) {
+    StepResult back = attempt(rest_);
+    if (count(back) > count(best)) best = std::move(back);
+  }
+  // Unmeasured markers move with the mean displacement of their 4 nearest measured ones; while
+  // that lets more markers be found (a dimple released in one step: the rim is found first, then
+  // the markers inside it), associate again from these predictions.
+  const auto predict_unmeasured = [&](StepResult& r) {
+    std::vector<std::size_t> measured_ids;
+    for (std::size_t m = 0; m < nm; ++m)
+      if (r.measured[m]) measured_ids.push_back(m);
+    for (std::size_t m = 0; m < nm; ++m) {
+      if (r.measured[m]) continue;
+      std::vector<std::pair<double, std::size_t>> near;
+      for (std::size_t q : measured_ids)
+        near.emplace_back((position_[q] - position_[m]).squaredNorm(), q);
+      const std::size_t k = std::min<std::size_t>(4, near.size());
+      std::partial_sort(near.begin(), near.begin() + static_cast<std::ptrdiff_t>(k), near.end());
+      Eigen::Vector3d d = Eigen::Vector3d::Zero();
+      for (std::size_t i = 0; i < k; ++i)
+        d += r.points_m[near[i].second] - position_[near[i].second];
+      r.points_m[m] = position_[m] +
+                      (k ? Eigen::Vector3d(d / static_cast<double>(k)) : Eigen::Vector3d::Zero());
+    }
+  };
+  predict_unmeasured(best);
+  for (int pass = 0; pass < 8 && count(best) < static_cast<long>(active); ++pass) {
+    StepResult again = attempt(best.points_m);
+    if (count(again) <= count(best)) break;
+    best = std::move(again);
+    predict_unmeasured(best);
   }
   for (std::size_t m = 0; m < nm; ++m) {
     velocity_[m] = best.points_m[m] - position_[m];
@@ -386,6 +403,7 @@ Result<StepResult> MarkerTracker::track(const FrameDetections& detections) {
         position_.push_back(p.point_m);
         velocity_.push_back(Eigen::Vector3d::Zero());
         birth_.push_back(step_);
+        rest_.push_back(p.point_m);
         unmeasured_run_.push_back(0);
         retired_.push_back(0);
         best.points_m.push_back(p.point_m);

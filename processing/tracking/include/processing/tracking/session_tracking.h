@@ -101,6 +101,9 @@ struct SessionTrackOptions {
   // Filled nodes that would lie inside the probe sphere (pose from the step record) are put on
   // its surface and used as constraints of the fill.
   bool probe_constraint = true;
+  // Measured markers used as RBF centres per step: the ones nearest the unmeasured markers and
+  // the probe (0: all). The solve is cubic in this number.
+  std::size_t max_fill_centres = 120;
 };
 
 struct TrackSummary {

@@ -83,10 +83,13 @@ struct StepResult {
   std::size_t matched_detections = 0;     // assigned to a measured marker
 };
 
-// Tracks a fixed set of markers through steps: initialise() finds them (match_views), track()
-// associates each later step's detections by projecting the prediction (previous position plus
-// the previous step's displacement) into every camera, taking the nearest unambiguous detection
-// within the search radius, triangulating (DLT + refinement) and rejecting outlier views.
+// Tracks markers through steps: initialise() finds them (match_views), track() associates each
+// later step's detections by projecting the prediction (previous position plus the previous
+// step's displacement) into every camera, taking the nearest unambiguous detection within the
+// search radius, triangulating (DLT + refinement) and rejecting outlier views. When fewer than 95 %
+// are found it also tries the previous positions and the first-seen positions (the probe let go),
+// then re-predicts unmeasured markers from their measured neighbours' displacement and associates
+// again while that finds more. Leftover detections become new markers (see TrackOptions).
 class MarkerTracker {
  public:
   MarkerTracker(std::vector<calib::CameraModel> cameras, TrackOptions options);
@@ -104,6 +107,7 @@ class MarkerTracker {
   TrackOptions options_;
   std::vector<Eigen::Vector3d> position_;  // last measured (or predicted) position
   std::vector<Eigen::Vector3d> velocity_;  // last step's displacement
+  std::vector<Eigen::Vector3d> rest_;      // where each marker was first seen
   std::vector<int> birth_;
   std::vector<int> unmeasured_run_;
   std::vector<std::uint8_t> retired_;
