@@ -4,7 +4,12 @@
 
 #include <string>
 
+#include <Eigen/Core>
+
+#include <algorithm>
+
 #include "rig_daemon/daemon/plan.h"
+#include "rig_daemon/daemon/rig.h"
 #include "rig_daemon/daemon/rig_config.h"
 #include "test_data.h"
 
@@ -237,6 +242,46 @@ TEST(Workspace, ContainsAndIntersect) {
   EXPECT_TRUE(c.contains({0.7, 0.1, 0.5}));
   EXPECT_FALSE(c.contains({0.4, 0.1, 0.5}));
   EXPECT_TRUE(a.intersect(WorkspaceBox{{2, 2, 2}, {3, 3, 3}}).empty());
+}
+
+}  // namespace
+}  // namespace hc::rig
+
+namespace hc::rig {
+namespace {
+
+TEST(RigConfig, HighResolutionExampleRigSeesTheWholeSpecimen) {
+  // rig_sim_hires.yaml: seven 1600 x 1200 cameras on a half circle (thesis 5.6). At rest every
+  // one of the specimen's 441 markers (21 x 21, 3 mm grid over 60 mm) is in every camera's view,
+  // each dot is several pixels wide, and the specimen spans a good part of the image.
+  Result<RigConfig> cfg = load_rig_config(example("rig_sim_hires.yaml"));
+  ASSERT_TRUE(cfg.ok()) << cfg.status().to_string();
+  Rig::Options o;
+  o.config = *cfg;
+  o.clock = std::make_shared<devices::SimulatedClock>(1'000'000'000);
+  Result<std::unique_ptr<Rig>> rig = Rig::create(o);
+  ASSERT_TRUE(rig.ok()) << rig.status().to_string();
+  devices::sim::World& world = *(*rig)->world();
+  const std::vector<devices::sim::CameraRecord> cams = world.cameras();
+  ASSERT_EQ(cams.size(), 7u);
+  const devices::sim::GroundTruth g = world.ground_truth(world.clock().now_ns());
+  ASSERT_EQ(g.markers_m.size(), 441u);
+  ASSERT_EQ(g.cameras.size(), 7u);
+  for (std::size_t i = 0; i < 7; ++i) {
+    const devices::sim::PinholeCamera& c = cams[i].camera;
+    EXPECT_EQ(c.width, 1600u);
+    EXPECT_EQ(c.height, 1200u);
+    EXPECT_TRUE(g.cameras[i].out_of_view.empty()) << cams[i].name;
+    double u0 = 1e9, u1 = -1e9, v0 = 1e9, v1 = -1e9;
+    for (const Eigen::Vector3d& m : g.markers_m) {
+      const Eigen::Vector2d uv = *c.project(m);
+      u0 = std::min(u0, uv.x()), u1 = std::max(u1, uv.x());
+      v0 = std::min(v0, uv.y()), v1 = std::max(v1, uv.y());
+    }
+    EXPECT_GT(std::max(u1 - u0, v1 - v0), 600.0) << cams[i].name;
+    // Dot radius f r / D with r = 0.6 mm, D ~ 0.3 m: ~7 px.
+    EXPECT_GT(c.fx * 0.0006 / c.depth(g.markers_m[220]), 6.0);
+  }
 }
 
 }  // namespace
