@@ -29,13 +29,14 @@ TEST(LinearComparison, DataDrivenFollowsReferenceLinearUnderThenOverEstimates) {
   o.min_force_fraction = 0.1;
   o.margin_fraction = 0.4;  // probe near the centre, as in the thesis's 12 examples
   o.fixed_nodes = testing::bottom_nodes(ref.mesh);
-  o.examples = 8;
+  o.examples = 12;  // the thesis's 12 examples near the centre
   o.seed = 5;
   Result<Samples> train = synthesize_samples(ref.mesh, ref.simulator(), o);
   ASSERT_TRUE(train.ok()) << train.status().to_string();
 
   HeterogeneousFitOptions options;
   options.parameters.regularization = 1e-6;
+  options.rbf.tolerance = 0.01;  // noise-free examples: reproduce them closely
   Result<Material> fitted = fit_heterogeneous(*train, options);
   ASSERT_TRUE(fitted.ok()) << fitted.status().to_string();
   std::vector<ExampleProblem> problems;
@@ -71,10 +72,12 @@ TEST(LinearComparison, DataDrivenFollowsReferenceLinearUnderThenOverEstimates) {
     ratio_ours.push_back(u_ours / u_ref);
     ratio_linear.push_back(u_lin / u_ref);
   }
-  // Ours follows the reference and beats the linear model at both ends. Measured: ours 0.75, 1.05,
-  // 1.15 of the reference at 0.6, 2.5, 6 N; the linear model 0.68, 1.40, 2.53 (0.6 N lies at the
-  // lower end of the training forces, 0.6-6 N, and 6 N compresses the block by ~30 %).
-  for (double r : ratio_ours) EXPECT_NEAR(r, 1.0, 0.30);
+  // Ours follows the reference (max displacement within 10 % at every force level) and beats the
+  // linear model at both ends. Measured: ours 0.91, 1.05, 1.09 of the reference at 0.6, 2.5, 6 N;
+  // the linear model 0.69, 1.44, 2.60 (0.6 N lies at the lower end of the training forces, 0.6-6
+  // N, and 6 N compresses the block by ~30 %). Before the nodal-force fixed point was
+  // under-relaxed (processing/fem/incremental.cpp) and with 8 examples ours was 0.75 / 1.05 / 1.15.
+  for (double r : ratio_ours) EXPECT_NEAR(r, 1.0, 0.10);
   EXPECT_LT(std::abs(ratio_ours.front() - 1), std::abs(ratio_linear.front() - 1));
   EXPECT_LT(std::abs(ratio_ours.back() - 1), std::abs(ratio_linear.back() - 1));
   // The linear model: underestimates at small force, overestimates at large force (Fig. 4.5.2).

@@ -36,6 +36,8 @@ struct IncrementalSummary {
   double max_displacement_m = 0;
   int total_iterations = 0;
   double time_s = 0;
+  // false when a load step ended at contact.max_iterations without reaching the tolerance (nodal-
+  // force loading only; probe loading fails instead).
   bool converged = false;
 };
 
@@ -53,7 +55,8 @@ Status run_incremental(CorotationalFem* fem, const MaterialModel& material, cons
                        const Load& load, const IncrementalOptions& options,
                        IncrementalSummary* summary);
 
-// Nodal-force loading: step k applies (k / steps) * forces and iterates rotations to equilibrium.
+// Nodal-force loading: step k applies (k / steps) * forces and iterates rotations (and, with
+// update_within_step, parameters; under-relaxed when the iteration oscillates) to equilibrium.
 Status run_incremental_forces(CorotationalFem* fem, const MaterialModel& material,
                               const MatrixX3d& forces, const IncrementalOptions& options,
                               IncrementalSummary* summary);
