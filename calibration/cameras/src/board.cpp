@@ -186,7 +186,21 @@ Result<std::optional<BoardDetection>> detect_board(const ImageView& image, const
       // Like stereo_calib.cpp, a second try on the image upscaled 2x (helps small or blurred
       // boards); the corners are refined on the original image either way.
       bool found = false;
-      for (int scale = 1; scale <= 2 && !found; ++scale) {
+      if (static_cast<double>(grey.cols) * grey.rows > 1.5e6) {
+        // Large images: find the board on a half-resolution copy (4x fewer pixels; FAST_CHECK
+        // rejects frames without a board quickly), then refine the corners on the full image.
+        cv::Mat half;
+        cv::pyrDown(grey, half);
+        found = cv::findChessboardCorners(
+            half, pattern, corners,
+            cv::CALIB_CB_ADAPTIVE_THRESH | cv::CALIB_CB_NORMALIZE_IMAGE | cv::CALIB_CB_FAST_CHECK);
+        // pyrDown: half-resolution pixel centre x_h is full-resolution 2 x_h + 0.5.
+        if (found)
+          for (cv::Point2f& p : corners) p = 2.0f * p + cv::Point2f(0.5f, 0.5f);
+        else
+          corners.clear();
+      }
+      for (int scale = 1; scale <= 2 && !found && grey.total() <= 1.5e6; ++scale) {
         cv::Mat scaled = grey;
         if (scale > 1) {
           if (static_cast<double>(grey.cols) * grey.rows > 4e6) break;  // large images: no upscale
@@ -212,7 +226,8 @@ Result<std::optional<BoardDetection>> detect_board(const ImageView& image, const
         cv::cornerSubPix(
             grey, corners, cv::Size(half, half), cv::Size(-1, -1),
             cv::TermCriteria(cv::TermCriteria::COUNT + cv::TermCriteria::EPS, 30, 0.01));
-      } else if (options.sector_based_fallback) {
+      } else if (options.sector_based_fallback && grey.total() <= 1.5e6) {
+        // (Not on large images: the sector-based detector takes seconds on an empty frame.)
         corners.clear();
         found = cv::findChessboardCornersSB(
             grey, pattern, corners,
@@ -303,18 +318,22 @@ std::vector<std::uint8_t> ChessboardRenderer::render(
     const Eigen::Vector3d ray(corner_rays_[i].x(), corner_rays_[i].y(), 1.0);
     const Eigen::Vector3d b = Hinv * ray;
     // The ray must hit the plane in front of the camera (b.z() > 0 means positive depth).
+    // Only the front is printed: seen from behind (the board's +z axis, pointing away from the
+    // front's viewer, facing the camera) the board is blank.
     if (b.z() <= 0.0)
       uv[i] = Eigen::Vector2d(NAN, NAN);
     else
       uv[i] = Eigen::Vector2d(b.x() / b.z(), b.y() / b.z());
   }
+  const bool from_behind = cb.linear().col(2).dot(cb.translation()) < 0.0;
   const double u_lo = -2.0 * s, u_hi = (spec_.cols + 1) * s;
   const double v_lo = -2.0 * s, v_hi = (spec_.rows + 1) * s;
   const auto shade = [&](double u, double v) -> double {
     if (!(u >= u_lo && u < u_hi && v >= v_lo && v < v_hi)) return options_.background;
     const long a = static_cast<long>(std::floor(u / s)) + 1;  // square index 0..cols
     const long b = static_cast<long>(std::floor(v / s)) + 1;
-    if (a < 0 || b < 0 || a > spec_.cols || b > spec_.rows) return options_.light;  // margin
+    if (from_behind || a < 0 || b < 0 || a > spec_.cols || b > spec_.rows)
+      return options_.light;  // margin (or the blank back)
     return ((a + b) % 2 == 0) ? options_.dark : options_.light;
   };
   for (int y = 0; y < H; ++y) {

@@ -257,6 +257,73 @@ Result<CalibrationSummary> calibrate_camera_opencv(const CameraObservations& cam
   return s;
 }
 
+Result<CalibrationSummary> stereo_calibrate_opencv(const CameraObservations& a,
+                                                   const CameraObservations& b,
+                                                   const BoardSpec& board,
+                                                   const CalibrationOptions& options) {
+  const auto t0 = Clock::now();
+  HC_ASSIGN_OR_RETURN(OpenCvCalibration ca, run_opencv(a, board, options));
+  HC_ASSIGN_OR_RETURN(OpenCvCalibration cb, run_opencv(b, board, options));
+  std::map<int, const ViewObservation*> vb;
+  for (const ViewObservation& v : b.views) vb[v.view] = &v;
+  std::vector<std::vector<cv::Point3f>> object;
+  std::vector<std::vector<cv::Point2f>> pa, pb;
+  for (const ViewObservation& v : a.views) {
+    const auto it = vb.find(v.view);
+    if (it == vb.end()) continue;
+    std::map<int, Eigen::Vector2d> in_b;
+    for (std::size_t i = 0; i < it->second->ids.size(); ++i)
+      in_b[it->second->ids[i]] = it->second->pixels[i];
+    std::vector<cv::Point3f> o;
+    std::vector<cv::Point2f> qa, qb;
+    for (std::size_t i = 0; i < v.ids.size(); ++i) {
+      const auto jt = in_b.find(v.ids[i]);
+      if (jt == in_b.end()) continue;
+      const Eigen::Vector3d X = board.corner(v.ids[i]);
+      o.emplace_back(static_cast<float>(X.x()), static_cast<float>(X.y()), 0.0f);
+      qa.emplace_back(static_cast<float>(v.pixels[i].x()), static_cast<float>(v.pixels[i].y()));
+      qb.emplace_back(static_cast<float>(jt->second.x()), static_cast<float>(jt->second.y()));
+    }
+    if (static_cast<int>(o.size()) < options.min_points_per_view) continue;
+    object.push_back(std::move(o));
+    pa.push_back(std::move(qa));
+    pb.push_back(std::move(qb));
+  }
+  if (object.empty())
+    return invalid_argument(fmt::format("cameras '{}' and '{}' share no view", a.name, b.name));
+  cv::Mat R, T, E, F;
+  double rms = 0.0;
+  try {
+    rms = cv::stereoCalibrate(
+        object, pa, pb, ca.K, ca.dist, cb.K, cb.dist, cv::Size(a.width, a.height), R, T, E, F,
+        cv::CALIB_USE_INTRINSIC_GUESS | opencv_flags(options),
+        cv::TermCriteria(cv::TermCriteria::COUNT + cv::TermCriteria::EPS, 100, 1e-6));
+  } catch (const cv::Exception& e) {
+    return invalid_argument(std::string("OpenCV stereoCalibrate failed: ") + e.what());
+  }
+  CalibrationSummary s;
+  for (int k = 0; k < 2; ++k) {
+    const OpenCvCalibration& c = k == 0 ? ca : cb;
+    const CameraObservations& o = k == 0 ? a : b;
+    double intr[kIntrinsics];
+    intr[0] = c.K.at<double>(0, 0);
+    intr[1] = c.K.at<double>(1, 1);
+    intr[2] = c.K.at<double>(0, 2);
+    intr[3] = c.K.at<double>(1, 2);
+    for (int i = 0; i < 5; ++i) intr[4 + i] = c.dist.at<double>(i);
+    s.rig.cameras.push_back(model_from(o.name, o.width, o.height, intr, false));
+  }
+  cv::Mat Rd, Td;
+  R.convertTo(Rd, CV_64F);
+  T.convertTo(Td, CV_64F);
+  cv::cv2eigen(Rd, s.rig.cameras[1].R);
+  for (int i = 0; i < 3; ++i) s.rig.cameras[1].t_m(i) = Td.at<double>(i);
+  s.joint_rms_px = s.rig.joint_rms_px = rms;
+  s.board_poses = static_cast<int>(object.size());
+  s.solve_time_s = seconds_since(t0);
+  return s;
+}
+
 Result<CalibrationSummary> calibrate_rig(const std::vector<CameraObservations>& cameras,
                                          const BoardSpec& board,
                                          const CalibrationOptions& options) {

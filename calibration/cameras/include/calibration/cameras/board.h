@@ -62,7 +62,9 @@ struct DetectOptions {
   // Size(11, 11), a 23x23 window, and produced the reference results); reduced automatically to
   // 60 % of the corner spacing on small boards.
   int subpix_half_window = 11;
-  // Fall back to cv::findChessboardCornersSB when the classic detector finds nothing.
+  // Fall back to cv::findChessboardCornersSB when the classic detector finds nothing (images up
+  // to 1.5 Mpx; larger ones are searched at half resolution with CALIB_CB_FAST_CHECK and refined
+  // at full resolution).
   bool sector_based_fallback = true;
   // Chessboard: put the corners in the canonical order (the square diagonally outside corner 0
   // is dark), so every camera numbers the corners the same way. Meaningful when cols + rows is

@@ -101,6 +101,14 @@ Result<CalibrationSummary> calibrate_camera_opencv(const CameraObservations& cam
                                                    const BoardSpec& board,
                                                    const CalibrationOptions& options = {});
 
+// OpenCV's two-camera calibration (the peer program for a pair): calibrateCamera on each, then
+// cv::stereoCalibrate over the views both saw (CALIB_USE_INTRINSIC_GUESS plus the option flags).
+// Returns the summary with camera b's pose relative to a; joint_rms_px is stereoCalibrate's RMS.
+Result<CalibrationSummary> stereo_calibrate_opencv(const CameraObservations& a,
+                                                   const CameraObservations& b,
+                                                   const BoardSpec& board,
+                                                   const CalibrationOptions& options = {});
+
 // The joint bundle adjustment over all cameras (one camera: a single-camera calibration refined by
 // Ceres). kInvalidArgument when a camera has too few views or is not connected to camera 0
 // through shared views.
