@@ -68,7 +68,8 @@ int run_track(const GlobalOptions& global, const TrackArgs& args) {
            {"time_s", time_s},
            {"stage_times_s",
             {{"decode", s.times.decode_s},
-             {"detection", s.times.detection_s},
+             {"detection_cpu", s.times.detection_s},
+             {"frames_wall", s.times.frames_s},
              {"matching_triangulation", s.times.matching_s},
              {"registration_filling", s.times.registration_s}}}};
     if (s.has_truth) {

@@ -61,9 +61,13 @@ struct SessionStep {
   std::vector<std::vector<std::uint32_t>> truth_occluded;
 };
 
+// Wall-clock seconds per stage, except detection_s: frames are detected on worker threads while
+// the next ones are decoded, so it is the sum of the per-frame detection times (CPU-seconds).
 struct StageTimes {
-  double decode_s = 0;        // reading + decompressing + decoding frames (and the JSON channels)
-  double detection_s = 0;     // dot detection
+  double decode_s = 0;        // reading + decompressing + decoding frames (and the JSON channels):
+                              // this thread's time, detection overlapping it
+  double detection_s = 0;     // dot detection, summed over frames
+  double frames_s = 0;        // wall time of the whole frame pass (decode + detection)
   double matching_s = 0;      // correspondences, association and triangulation
   double registration_s = 0;  // ICP, node assignment, filling, forces
   double total_s = 0;
