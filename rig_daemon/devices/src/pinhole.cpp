@@ -100,10 +100,14 @@ std::size_t render_dots(const PinholeCamera& cam, const std::vector<Eigen::Vecto
     if (!uv) continue;
     const double depth = cam.depth(c);
     const double r = cam.fx * radius_m / depth;
-    const int x0 = std::max(0, static_cast<int>(std::floor(uv->x() - r - 1.0)));
-    const int x1 = std::min(w - 1, static_cast<int>(std::ceil(uv->x() + r + 1.0)));
-    const int y0 = std::max(0, static_cast<int>(std::floor(uv->y() - r - 1.0)));
-    const int y1 = std::min(h - 1, static_cast<int>(std::ceil(uv->y() + r + 1.0)));
+    // Clamped before the conversion: a dot projected far off the image would overflow an int.
+    const auto clamp_px = [](double v, int lo, int hi) {
+      return std::clamp(v, static_cast<double>(lo), static_cast<double>(hi));
+    };
+    const int x0 = static_cast<int>(std::floor(clamp_px(uv->x() - r - 1.0, 0, w)));
+    const int x1 = static_cast<int>(std::ceil(clamp_px(uv->x() + r + 1.0, -1, w - 1)));
+    const int y0 = static_cast<int>(std::floor(clamp_px(uv->y() - r - 1.0, 0, h)));
+    const int y1 = static_cast<int>(std::ceil(clamp_px(uv->y() + r + 1.0, -1, h - 1)));
     if (x0 > x1 || y0 > y1) continue;
     ++drawn;
     for (int y = y0; y <= y1; ++y) {

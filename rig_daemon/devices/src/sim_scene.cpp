@@ -61,6 +61,17 @@ double hit_cylinder(const Eigen::Vector3d& o, const Eigen::Vector3d& d, const Ei
   return best;
 }
 
+// floor / ceil of a pixel coordinate as an int, clamped to [lo, hi] first (a point projected far
+// off the image would overflow the conversion).
+int floor_clamped(double v, int lo, int hi) {
+  return static_cast<int>(
+      std::floor(std::clamp(v, static_cast<double>(lo), static_cast<double>(hi))));
+}
+int ceil_clamped(double v, int lo, int hi) {
+  return static_cast<int>(
+      std::ceil(std::clamp(v, static_cast<double>(lo), static_cast<double>(hi))));
+}
+
 std::uint8_t to_grey(double v) {
   return static_cast<std::uint8_t>(std::clamp(std::lround(v), 0L, 255L));
 }
@@ -210,10 +221,10 @@ void ProbeLayer::render(const PinholeCamera& cam, const ProbeGeometry& probe, co
     const std::optional<Eigen::Vector2d> uv = cam.project(c);
     if (!uv) return;
     const double rp = 1.15 * std::max(cam.fx, cam.fy) * r / (z - r) + 2.0;
-    const int y0 = std::max(0, static_cast<int>(std::floor(uv->y() - rp)));
-    const int y1 = std::min(height - 1, static_cast<int>(std::ceil(uv->y() + rp)));
-    const int x0 = std::max(0, static_cast<int>(std::floor(uv->x() - rp)));
-    const int x1 = std::min(width - 1, static_cast<int>(std::ceil(uv->x() + rp)));
+    const int y0 = floor_clamped(uv->y() - rp, 0, height);
+    const int y1 = ceil_clamped(uv->y() + rp, -1, height - 1);
+    const int x0 = floor_clamped(uv->x() - rp, 0, width);
+    const int x1 = ceil_clamped(uv->x() + rp, -1, width - 1);
     if (x0 > x1) return;
     for (int y = y0; y <= y1; ++y) {
       lo[static_cast<std::size_t>(y)] = std::min(lo[static_cast<std::size_t>(y)], x0);
@@ -473,10 +484,10 @@ std::size_t render_board(const PinholeCamera& cam, const BoardSpec& spec, const 
     }
   int x0 = 0, x1 = w - 1, y0 = 0, y1 = h - 1;
   if (!behind) {
-    x0 = std::max(0, static_cast<int>(std::floor(u0)) - 2);
-    x1 = std::min(w - 1, static_cast<int>(std::ceil(u1)) + 2);
-    y0 = std::max(0, static_cast<int>(std::floor(v0)) - 2);
-    y1 = std::min(h - 1, static_cast<int>(std::ceil(v1)) + 2);
+    x0 = floor_clamped(u0 - 2.0, 0, w);
+    x1 = ceil_clamped(u1 + 2.0, -1, w - 1);
+    y0 = floor_clamped(v0 - 2.0, 0, h);
+    y1 = ceil_clamped(v1 + 2.0, -1, h - 1);
   }
   if (x0 > x1 || y0 > y1) return 0;
 

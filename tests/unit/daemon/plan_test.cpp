@@ -282,6 +282,28 @@ TEST(RigConfig, HighResolutionExampleRigSeesTheWholeSpecimen) {
     // Dot radius f r / D with r = 0.6 mm, D ~ 0.3 m: ~7 px.
     EXPECT_GT(c.fx * 0.0006 / c.depth(g.markers_m[220]), 6.0);
   }
+  // The example calibration plan suits this rig too: every board pose is seen whole by at least
+  // two cameras (so the joint adjustment links them), some only by a subset.
+  Result<Plan> plan = load_plan(example("calibration_board.yaml"));
+  ASSERT_TRUE(plan.ok());
+  devices::sim::BoardSpec spec;
+  spec.cols = plan->calibration.board_cols;
+  spec.rows = plan->calibration.board_rows;
+  spec.square_m = plan->calibration.square_m;
+  devices::sim::BoardMotion motion;
+  motion.poses = plan->calibration.poses;
+  motion.seed = plan->calibration.seed;
+  motion.max_tilt_deg = plan->calibration.max_tilt_deg;
+  int subset = 0;
+  for (const devices::sim::BoardPose& p :
+       devices::sim::board_poses(spec, motion, Eigen::Vector3d(0.0, 0.0, 0.05))) {
+    int seen = 0;
+    for (const devices::sim::CameraRecord& r : cams)
+      seen += devices::sim::board_visible(r.camera, spec, p) ? 1 : 0;
+    EXPECT_GE(seen, 2);
+    subset += seen < 7 ? 1 : 0;
+  }
+  EXPECT_GE(subset, 2);
 }
 
 }  // namespace

@@ -424,3 +424,51 @@ TEST(Session, CalibrationCaptureShowsTheBoardInEveryFrameSet) {
 
 }  // namespace
 }  // namespace hc::rig
+
+namespace hc::rig {
+namespace {
+
+TEST(Session, AutomatedTruthCarriesTheProbeAndPerCameraOcclusion) {
+  ScratchDir dir;
+  auto d = make_daemon(dir.path());
+  ASSERT_TRUE(d);
+  Result<Plan> plan = load_plan(example("automated_track.yaml"));
+  ASSERT_TRUE(plan.ok()) << plan.status().to_string();
+  const Json s = run_plan(*d, *plan);
+  ASSERT_EQ(s["state"], "finished") << s.dump(2);
+  EXPECT_EQ(s["association"]["edges_complete"], 30);
+  const testing::SessionContents c = read_session(s["session"].get<std::string>());
+  ASSERT_TRUE(c.metadata.count(std::string(kMetadataSimCameras)));
+  EXPECT_FALSE(c.metadata.count(std::string(kMetadataSimBoard)));  // not a calibration
+  const auto& truths = c.by_topic.at(std::string(kGroundTruthTopic));
+  ASSERT_EQ(truths.size(), 30u);
+  std::size_t max_occluded = 0;
+  for (const testing::Msg& m : truths) {
+    const Json j = json_of(m);
+    ASSERT_EQ(j["markers_m"].size(), 441u);
+    EXPECT_TRUE(j["probe_shown"].get<bool>());
+    EXPECT_FALSE(j.contains("board"));
+    // The tip is the arm's tool point; the probe is held vertical; the shaft markers sit 60 and
+    // 110 mm up the axis (ProbeLook defaults, sim_scene.h).
+    for (int i = 0; i < 3; ++i)
+      EXPECT_DOUBLE_EQ(j["probe_tip_m"][i].get<double>(),
+                       j["probe"][std::string(1, "xyz"[i]) + "_m"].get<double>());
+    EXPECT_EQ(j["probe_axis"], Json::array({0.0, 0.0, 1.0}));
+    EXPECT_DOUBLE_EQ(j["probe_radius_m"].get<double>(), 0.005);
+    const double tip_z = j["probe_tip_m"][2].get<double>();
+    EXPECT_NEAR(j["shaft_markers_m"][0][2].get<double>(), tip_z + 0.06, 1e-12);
+    EXPECT_NEAR(j["shaft_markers_m"][1][2].get<double>(), tip_z + 0.11, 1e-12);
+    ASSERT_EQ(j["cameras"].size(), 7u);
+    for (const auto& [name, cam] : j["cameras"].items()) {
+      EXPECT_TRUE(cam["out_of_view"].empty()) << name;  // the whole grid is in every view
+      max_occluded = std::max(max_occluded, cam["occluded"].size());
+      for (const Json& i : cam["occluded"]) EXPECT_LT(i.get<std::uint32_t>(), 441u);
+    }
+  }
+  // The probe pressing the centre hides some markers from some camera, never most of them.
+  EXPECT_GT(max_occluded, 0u);
+  EXPECT_LT(max_occluded, 100u);
+}
+
+}  // namespace
+}  // namespace hc::rig
