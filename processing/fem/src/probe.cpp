@@ -85,9 +85,16 @@ double CylinderProbe::local_signed_distance(const Eigen::Vector3d& p,
   const Eigen::Vector3d radial =
       rho > 1e-300 ? Eigen::Vector3d(p.x() / rho, p.y() / rho, 0) : Eigen::Vector3d::UnitX();
   const Eigen::Vector3d axial(0, 0, dz_signed >= 0 ? 1.0 : -1.0);
-  if (dr <= 0 && dz <= 0) {  // inside: nearest of the side wall and the nearer cap
-    if (normal != nullptr) *normal = (dr > dz) ? radial : axial;
-    return std::max(dr, dz);
+  if (dr <= 0 && dz <= 0) {
+    // Inside. A punch is driven along its axis, so material enters through a flat face: a point
+    // less than one radius under the nearer cap is pushed back out through that cap, even when
+    // the side wall is nearer (nodes just inside the rim). With the nearest-surface rule those rim
+    // nodes were pushed sideways out of contact, so the punch's footprint lost its rim ring and
+    // the depth-force curve jumped as they entered (tests/unit/fem/contact_test.cpp, flat punch
+    // with rim nodes). Deeper points take the nearest surface.
+    const bool through_cap = -dz <= radius_ || dz >= dr;
+    if (normal != nullptr) *normal = through_cap ? axial : radial;
+    return through_cap ? dz : dr;
   }
   const double or_ = std::max(dr, 0.0);
   const double oz = std::max(dz, 0.0);

@@ -82,6 +82,39 @@ struct Block {
                                      graded_coordinates(-0.02, 0, 0, 0.0025, 1.5));
 };
 
+// Flat punch whose radius (3.6 mm) lies just outside a ring of nodes (rho = 3.54 mm): those rim
+// nodes are under the face by more than their 0.06 mm distance to the side wall as soon as the
+// punch is 0.06 mm deep. When inside points took the nearest surface's normal they were pushed
+// sideways by the wall, F(d) dropped as they entered, and force control failed on the jump.
+TEST(Contact, FlatPunchForceControlWithRimNodesInContact) {
+  Block b;
+  auto fem = CorotationalFem::create(b.mesh, nodes_on_plane(b.mesh, 2, -0.02, 1e-12));
+  ASSERT_TRUE(fem.ok());
+  fem->set_uniform_params(lambda_alpha_from_youngs_poisson(1e5, 0.3));
+  auto probe = make_flat_probe(0.0036, Eigen::Vector3d(0, 0, 0.001), Eigen::Vector3d(0, 0, -1));
+  ASSERT_TRUE(probe.ok());
+  auto cs = ContactSolver::create(&*fem, **probe);
+  ASSERT_TRUE(cs.ok()) << cs.status().to_string();
+  // F(d) increases with depth (no drop when the rim ring enters contact).
+  double last = 0;
+  for (int k = 1; k <= 20; ++k) {
+    ContactSummary s;
+    ASSERT_TRUE(cs->solve_depth(1e-4 * k, &s).ok()) << "depth " << 1e-4 * k;
+    EXPECT_GT(s.force_n, last) << "depth " << 1e-4 * k;
+    last = s.force_n;
+  }
+  for (double depth : {0.5e-3, 1e-3, 2e-3}) {
+    ContactSummary s_depth;
+    ASSERT_TRUE(cs->solve_depth(depth, &s_depth).ok());
+    EXPECT_GE(s_depth.active_nodes, 9);  // the centre, the 4 axis nodes and the 4 rim nodes
+    ContactSummary s_force;
+    Status st = cs->solve_force(s_depth.force_n, &s_force);
+    ASSERT_TRUE(st.ok()) << st.to_string();
+    EXPECT_NEAR(s_force.force_n, s_depth.force_n, 1e-4 * s_depth.force_n);
+    EXPECT_NEAR(s_force.depth_m, depth, 1e-3 * depth);
+  }
+}
+
 TEST(Contact, ForceControlHitsTheTargetAndAgreesWithDepthControl) {
   Block b;
   auto fem = CorotationalFem::create(b.mesh, nodes_on_plane(b.mesh, 2, -0.02, 1e-12));
