@@ -114,6 +114,18 @@ Result<Eigen::MatrixXd> read_matrix(const cv::FileNode& node, std::string_view k
                                     int cols, const std::string& where) {
   if (node.empty() || !node.isMap())
     return invalid_argument(fmt::format("{}: '{}' missing or not a matrix", where, key));
+  // The declared size must match the data before OpenCV allocates rows x cols (found by
+  // fuzz_rig_calibration: "rows: (3" made cv::Mat try to allocate 48 GB).
+  {
+    const cv::FileNode r = node["rows"], c = node["cols"], data = node["data"];
+    if (!r.isInt() || !c.isInt() || !data.isSeq() || static_cast<int>(r) < 0 ||
+        static_cast<int>(c) < 0 ||
+        static_cast<std::size_t>(static_cast<int>(r)) *
+                static_cast<std::size_t>(static_cast<int>(c)) !=
+            data.size())
+      return invalid_argument(fmt::format(
+          "{}: '{}' is not a well-formed matrix (rows, cols and data disagree)", where, key));
+  }
   cv::Mat m;
   node >> m;
   if (m.empty() && !(rows == 1 && cols < 0))
@@ -261,6 +273,10 @@ Result<RigCalibration> read_rig_calibration(const std::filesystem::path& path) {
     std::string what = e.what();
     if (const auto nl = what.find('\n', 1); nl != std::string::npos && nl > 0) what.resize(nl);
     return invalid_argument(file + ": malformed YAML: " + what);
+  } catch (const std::exception& e) {
+    // OpenCV's parser also lets standard exceptions escape on some malformed input (found by
+    // fuzz_rig_calibration: std::length_error from a string it sizes from garbage).
+    return invalid_argument(file + ": malformed YAML (" + e.what() + ")");
   }
 }
 
