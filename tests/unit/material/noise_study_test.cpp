@@ -4,6 +4,35 @@
 // measured positions; the fitted material simulates the (clean) examples. Thesis: L2 error 0.3
 // %, 2.1 %, 3.1 %, 4.4 % of the max displacement; ours must be no worse. The full-size run is in
 // tests/bench/bench_material_fit.cpp.
+//
+// What limited the errors (profiled per stage: per-example LM fit, the per-example parameters
+// simulated as a constant material ("oracle"), then the RBF material; was 0.80/3.50/3.93/4.45 %):
+// * Noise-free, 0.80 % -> 0.10 %: NOT the model family, the RBF or the mesh. One of the 9 examples
+//   had its uniform start fitted to nu = 0; the per-element LM works on logit(nu / nu_max), whose
+//   derivative vanishes there, so all its elements stayed at nu ~ 0 (40 iterations, 1.9 % fit
+//   error vs ~0.1 % for the others) and that example's parameters poisoned every element's RBF.
+//   fit_example now starts inside [0.1, 0.9] nu_max. With it, the per-example fits reach ~0.1 % and
+//   the RBF material reproduces them (0.10 %).
+// * Noisy: the per-example parameters simulated directly are already as far from the clean
+//   positions as the RBF material (e.g. 3.1 % vs 3.1 % at 10 %), so the RBF neither adds nor
+//   averages out the error; it is the estimation of (lambda, alpha) from one noisy example.
+//   Poisson's ratio is hardly identified by displacements: under noise the per-example nu ran to 0
+//   or 0.48 (lambda then varies 20x for the same E) -> a weak prior on nu (ParameterFitOptions::
+//   poisson_prior) fixes that (30 %: 4.52 -> 4.24 %). The Laplacian weight trades noise against
+//   smoothing the layer jumps (150/60/30 kPa); gamma = 0.01 sigma^2 is near the best at every level
+//   (10 %: gamma 1e-5..1e-3 gives 3.0..3.7 %). Freezing R_e at the fitted instead of the noisy
+//   configuration changed < 0.1 %. A finer mesh helps at 10 % (6x6x4: 2.4 %) but not uniformly
+//   (5x5x4: 2.3 / 4.0 / 8.0 %) and costs 5x the CI time.
+// * The error measure: ours is the RMS node distance over all visible free nodes of all examples
+//   divided by the largest displacement of all examples (the issue's error_rel_max_disp); the
+//   thesis's "L2 error ... on average ... of the maximum displacement" does not pin the averaging
+//   down (a per-example mean of distances would be lower, a per-example relative RMS higher: 4.5 %
+//   at 10 %); we keep the issue's definition. The noise is the issue's: sigma = noise x the
+//   example's max displacement on every coordinate of every measured node (interior ones too), i.e.
+//   nodes far from the probe get noise far above their displacement; the thesis's "variance of 10
+//   %" may mean noise relative to each displacement, which would be much milder.
+// Result: 0.10 / 3.13 / 3.70 / 4.24 %: the thesis's numbers at 0 % and 30 %, not yet at 10 % and
+// 20 % (2.1 / 3.1 %).
 #include <gtest/gtest.h>
 
 #include <cstdio>
@@ -82,8 +111,9 @@ void run_noise_study(const double (&bound)[4]) {
 // today at 10 % and 20 % (measured 0.10 %, 3.13 %, 3.70 %, 4.24 %) with a small margin.
 TEST(NoiseStudy, ErrorsWithinMeasuredBounds) { run_noise_study({0.003, 0.035, 0.041, 0.044}); }
 
-// The issue's acceptance criterion (thesis Sec. 4.5: 0.3 %, 2.1 %, 3.1 %, 4.4 %). Disabled because
-// it does not pass yet (see the measured values above); run with --gtest_also_run_disabled_tests.
+// The issue's acceptance criterion (thesis Sec. 4.5: 0.3 %, 2.1 %, 3.1 %, 4.4 %). Still disabled:
+// 0 % and 30 % pass, 10 % and 20 % do not (3.13 %, 3.70 %; see the top of this file); run with
+// --gtest_also_run_disabled_tests.
 TEST(NoiseStudy, DISABLED_ErrorsNoWorseThanTheThesis) {
   run_noise_study({0.003, 0.021, 0.031, 0.044});
 }
