@@ -1,5 +1,6 @@
 #include "processing/fem/incremental.h"
 
+#include <algorithm>
 #include <chrono>
 #include <limits>
 #include <string>
