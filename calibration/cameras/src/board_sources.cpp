@@ -11,6 +11,7 @@
 #include <cctype>
 #include <chrono>
 #include <map>
+#include <optional>
 #include <set>
 
 #include "common/json.h"
@@ -200,6 +201,9 @@ Result<std::vector<CameraObservations>> detect_in_session(const std::filesystem:
   DetectionStats st;
   std::vector<int> frames(cams.size(), 0);
   std::vector<std::set<int>> seen(cams.size());
+  std::vector<std::optional<std::uint32_t>> first_seq(cams.size());
+  std::vector<std::uint32_t> prev_seq(cams.size(), 0);
+  std::vector<std::uint64_t> wrap(cams.size(), 0);
   Status status;
   HC_RETURN_IF_ERROR(reader.read_messages(
       {.topics = topics, .order = recording::ReadOrder::kFile},
@@ -262,9 +266,22 @@ Result<std::vector<CameraObservations>> detect_in_session(const std::filesystem:
                                                 grey.cols, grey.rows, cam.width, cam.height));
           return false;
         }
-        std::int64_t view = m.message.sequence;
+        // The sync records name a camera's frame by its frame_index (frames since the camera was
+        // activated, session_layout.h / devices::Frame), the message sequence is its frame_id:
+        // frame_index = frame_id unwrapped (16- or 32-bit counters) minus the session's first.
+        // A record naming the sequence itself is accepted too (frame_id == frame_index).
+        const std::uint32_t seq = m.message.sequence;
+        if (!first_seq[ci]) {
+          first_seq[ci] = seq;
+          prev_seq[ci] = seq;
+        }
+        if (seq < prev_seq[ci]) wrap[ci] += prev_seq[ci] < 65536u ? 65536ull : (1ull << 32);
+        prev_seq[ci] = seq;
+        const std::uint64_t frame_index = wrap[ci] + seq - *first_seq[ci];
+        std::int64_t view = seq;
         if (auto it = trigger_of.find(cam.name); it != trigger_of.end()) {
-          const auto t = it->second.find(m.message.sequence);
+          auto t = it->second.find(seq);
+          if (t == it->second.end()) t = it->second.find(frame_index);
           if (t == it->second.end()) {
             task.advance();
             return true;  // a frame no trigger claimed (before the first edge): skip
@@ -292,6 +309,10 @@ Result<std::vector<CameraObservations>> detect_in_session(const std::filesystem:
         return true;
       }));
   HC_RETURN_IF_ERROR(status);
+  for (std::size_t i = 0; i < cams.size(); ++i)
+    if (cams[i].views.empty() && frames[i] == 0 && first_seq[i])
+      return invalid_argument(file + ": no frame of camera '" + cams[i].name +
+                              "' belongs to a /session/sync trigger record");
   for (std::size_t i = 0; i < cams.size(); ++i)
     if (cams[i].views.empty())
       return invalid_argument(no_board_message(cams[i], frames[i], board, " in " + file));

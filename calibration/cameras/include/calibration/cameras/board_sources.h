@@ -46,7 +46,9 @@ Result<std::vector<CameraObservations>> detect_in_images(const std::vector<Image
 // Reads a recorded session: camera channels are those whose metadata has kind=camera (name from
 // metadata "device", else the topic); frames are foxglove.RawImage (mono8, rgb8, bgr8, rgba8,
 // bgra8) or foxglove.CompressedImage. A frame's view is its trigger index from /session/sync
-// (frames{camera: sequence}) when the session has one, else the message sequence. kInvalidArgument
+// (frames{camera: frame_index}, matched to the message sequence = frame_id unwrapped from the
+// session's first frame, or to the sequence itself) when the session has one, else the message
+// sequence. kInvalidArgument
 // when the session has no camera channel, a frame cannot be decoded, or no board is found.
 Result<std::vector<CameraObservations>> detect_in_session(const std::filesystem::path& session,
                                                           const BoardSpec& board,

@@ -1,0 +1,105 @@
+// End to end on the simulated rig (SIMRIG's calibration protocol): rigd's daemon records the
+// example calibration capture (rig_daemon/examples/calibration_board.yaml: 8x6 inner corners,
+// 8 mm squares, 20 poses) on the embedded default rig (7 simulated cameras), then
+// `hardcopy calib cameras --session` calibrates it; the session's "sim_cameras" metadata holds
+// the true parameters (session_layout.h), expressed in the world frame.
+#include <gtest/gtest.h>
+
+#include <nlohmann/json.hpp>
+
+#include "calibration/cameras/camera_model.h"
+#include "cli_run.h"
+#include "rig_daemon/daemon/daemon.h"
+#include "rig_daemon/daemon/plan.h"
+#include "rig_daemon/daemon/rig_config.h"
+#include "rig_daemon/daemon/session_layout.h"
+#include "rig_daemon/devices/clock.h"
+#include "rig_daemon/recording/mcap_reader.h"
+#include "test_data.h"
+
+namespace hc::calib {
+namespace {
+
+using hc::testing::ScratchDir;
+
+// DISABLED (run with --gtest_also_run_disabled_tests): ~60 s, over the CI budget, and it does not
+// pass yet: on the embedded default rig (320x240, f = 400 px) the example board's 8 mm squares are
+// ~10 px wide, and cam4's single-camera initial guess diverges (calib cameras then exits 2 with
+// "camera 'cam4': focal lengths must be positive and finite"). Frames are grouped correctly
+// (frame_index from /session/sync). Meant for rig_sim_hires.yaml / a larger board.
+TEST(SimRigSession, DISABLED_CalibrationCaptureRecoversTrueCameras) {
+  ScratchDir dir;
+  Result<rig::RigConfig> cfg =
+      rig::parse_rig_config(std::string(rig::kEmbeddedDefaultRigConfig), "rig.yaml");
+  ASSERT_TRUE(cfg.ok()) << cfg.status().to_string();
+  cfg->sessions_dir = dir.path();
+  rig::Daemon::Options o;
+  o.config = *cfg;
+  o.clock = std::make_shared<devices::SimulatedClock>(1'000'000'000);
+  o.software_version = "test";
+  Result<std::unique_ptr<rig::Daemon>> d = rig::Daemon::create(o);
+  ASSERT_TRUE(d.ok()) << d.status().to_string();
+  Result<rig::Plan> plan =
+      rig::load_plan(hc::testing::source_dir() / "rig_daemon/examples/calibration_board.yaml");
+  ASSERT_TRUE(plan.ok()) << plan.status().to_string();
+  ASSERT_TRUE((*d)->start(*plan).ok());
+  ASSERT_TRUE((*d)->wait_idle(120000));
+  const Json summary = (*d)->last_summary();
+  ASSERT_EQ(summary["state"], "finished") << summary.dump(2);
+  const std::string session = summary["session"].get<std::string>();
+
+  // Truth.
+  Result<recording::McapReader> reader = recording::McapReader::open(session);
+  ASSERT_TRUE(reader.ok());
+  Result<std::vector<recording::Metadata>> meta = reader->read_metadata();
+  ASSERT_TRUE(meta.ok());
+  nlohmann::json truth;
+  for (const recording::Metadata& m : *meta)
+    if (m.name == rig::kMetadataSimCameras) truth = nlohmann::json::parse(m.metadata.at("json"));
+  ASSERT_TRUE(truth.is_object());
+
+  const auto out = dir / "rig.yml";
+  const auto r = hc::testing::hardcopy("calib cameras --pattern chessboard:8x6:0.008 --session " +
+                                       session + " -o " + out.string() + " --json");
+  ASSERT_EQ(r.exit_code, 0) << hc::testing::run_command(
+                                   (hc::testing::bin_dir() / "hardcopy").string() +
+                                   " --quiet calib cameras --pattern "
+                                   "chessboard:8x6:0.008 --session " +
+                                   session + " -o " + out.string() + " 2>&1")
+                                   .out;
+  const nlohmann::json j = nlohmann::json::parse(r.out);
+  Result<RigCalibration> rig = read_rig_calibration(out);
+  ASSERT_TRUE(rig.ok());
+  // World -> rig (camera 0's frame) from the truth of the first camera.
+  const auto mat = [](const nlohmann::json& a) {
+    Eigen::Matrix3d R;
+    for (int i = 0; i < 3; ++i)
+      for (int k = 0; k < 3; ++k) R(i, k) = a[i][k].get<double>();
+    return R;
+  };
+  const auto vec = [](const nlohmann::json& a) {
+    return Eigen::Vector3d(a[0].get<double>(), a[1].get<double>(), a[2].get<double>());
+  };
+  const std::string first = rig->cameras[0].name;
+  const Eigen::Matrix3d R0 = mat(truth[first]["R"]);
+  const Eigen::Vector3d t0 = vec(truth[first]["t_m"]);
+  double worst_f = 0.0, worst_c = 0.0;
+  for (const CameraModel& g : rig->cameras) {
+    const nlohmann::json& t = truth[g.name];
+    worst_f = std::max({worst_f, std::abs(g.fx - t["fx"].get<double>()) / t["fx"].get<double>(),
+                        std::abs(g.fy - t["fy"].get<double>()) / t["fy"].get<double>()});
+    // True centre in the rig frame: x_rig = R0 x_world + t0.
+    const Eigen::Vector3d c_rig = R0 * vec(t["center_m"]) + t0;
+    worst_c = std::max(worst_c, (g.center_m() - c_rig).norm());
+  }
+  std::printf(
+      "  sim rig: %zu cameras, joint RMS %.4f px, worst focal error %.3f %%, worst centre "
+      "error %.3f mm\n",
+      rig->cameras.size(), j["joint_rms_px"].get<double>(), 100 * worst_f, 1e3 * worst_c);
+  EXPECT_EQ(rig->cameras.size(), truth.size());
+  EXPECT_LT(worst_f, 0.01);
+  EXPECT_LT(worst_c, 2e-3);
+}
+
+}  // namespace
+}  // namespace hc::calib
