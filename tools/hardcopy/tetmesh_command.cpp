@@ -21,6 +21,10 @@ struct TetmeshArgs {
   double quality = 2.0;
   double max_volume_m3 = 0;
   double scale_to_m = 1.0;
+  // Structured box specimen instead of IN: size (m), hexahedral cells per axis, min corner (m).
+  std::vector<double> box_m;
+  std::vector<int> cells;
+  std::vector<double> origin_m;
   bool json = false;
 };
 
@@ -32,7 +36,43 @@ std::filesystem::path output_base(const std::string& out) {
   return p;
 }
 
+// --box: a structured specimen (each hexahedral cell split into 6 tets), e.g. a tracking template
+// whose top nodes lie on the painted 3 mm marker grid. Fills the summary as TetGen would.
+Result<TetMesh> box_input(const TetmeshArgs& args, meshing::TetrahedralizeSummary* summary) {
+  if (args.box_m.size() != 3 || args.cells.size() != 3 ||
+      (!args.origin_m.empty() && args.origin_m.size() != 3))
+    return invalid_argument("--box, --cells and --origin take three values each");
+  for (int i = 0; i < 3; ++i)
+    if (!(std::isfinite(args.box_m[i]) && args.box_m[i] > 0) || args.cells[i] < 1 ||
+        args.cells[i] > 1000)
+      return invalid_argument("--box sizes must be positive and --cells between 1 and 1000");
+  HC_ASSIGN_OR_RETURN(
+      TetMesh mesh,
+      meshing::structured_box(Eigen::Vector3d(args.box_m[0], args.box_m[1], args.box_m[2]),
+                              Eigen::Vector3i(args.cells[0], args.cells[1], args.cells[2])));
+  if (!args.origin_m.empty()) {
+    const Eigen::RowVector3d o(args.origin_m[0], args.origin_m[1], args.origin_m[2]);
+    if (!o.allFinite()) return invalid_argument("--origin must be finite");
+    mesh.nodes.rowwise() += o;
+  }
+  summary->volume = args.box_m[0] * args.box_m[1] * args.box_m[2];
+  summary->min_tet_volume = summary->max_tet_volume =
+      summary->volume / (6.0 * args.cells[0] * args.cells[1] * args.cells[2]);
+  summary->boundary_faces = 4 * (Eigen::Index{args.cells[0]} * args.cells[1] +
+                                 Eigen::Index{args.cells[1]} * args.cells[2] +
+                                 Eigen::Index{args.cells[0]} * args.cells[2]);
+  summary->switches = "";  // not TetGen
+  return mesh;
+}
+
 Result<TetMesh> mesh_input(const TetmeshArgs& args, meshing::TetrahedralizeSummary* summary) {
+  if (!args.box_m.empty()) {
+    if (!args.input.empty()) return invalid_argument("give either IN or --box, not both");
+    return box_input(args, summary);
+  }
+  if (args.input.empty()) return invalid_argument("give a surface mesh IN or --box");
+  if (!args.cells.empty() || !args.origin_m.empty())
+    return invalid_argument("--cells and --origin go with --box");
   meshing::TetrahedralizeOptions options;
   options.max_radius_edge_ratio = args.quality;
   options.max_volume = args.max_volume_m3;
@@ -86,7 +126,7 @@ int run_tetmesh(const GlobalOptions& global, const TetmeshArgs& args) {
   const double time_s =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   if (args.json) {
-    Json j{{"input", args.input},
+    Json j{{"input", args.input.empty() ? std::string("box") : args.input},
            {"node", base.string() + ".node"},
            {"ele", base.string() + ".ele"},
            {"vtu", vtu.string()},
@@ -100,9 +140,11 @@ int run_tetmesh(const GlobalOptions& global, const TetmeshArgs& args) {
            {"time_s", time_s}};
     if (Status s = print_json(j); !s.ok()) return ctx.fail("tetmesh", s);
   } else {
-    fmt::print("{} -> {}.{{node,ele,vtu}}: {} nodes, {} tets, volume {:.6g} m^3 (TetGen -{})\n",
-               args.input, base.string(), mesh->num_nodes(), mesh->num_tets(), summary.volume,
-               summary.switches);
+    fmt::print(
+        "{} -> {}.{{node,ele,vtu}}: {} nodes, {} tets, volume {:.6g} m^3 ({})\n",
+        args.input.empty() ? std::string("structured box") : args.input, base.string(),
+        mesh->num_nodes(), mesh->num_tets(), summary.volume,
+        summary.switches.empty() ? std::string("6 tets per cell") : "TetGen -" + summary.switches);
   }
   return kExitYes;
 }
@@ -116,7 +158,7 @@ void add_tetmesh_commands(CLI::App& app, const GlobalOptions& global, int* exit_
       "Tetrahedralize a closed surface mesh (.obj .stl .ply .off) or a TetGen .poly with TetGen; "
       "writes OUT.node, OUT.ele (TetGen) and OUT.vtu (ParaView).\nExit 0 on success, 2 on "
       "unreadable input, a surface TetGen rejects or bad options.");
-  c->add_option("IN", args->input, "Closed surface mesh or .poly file")->required();
+  c->add_option("IN", args->input, "Closed surface mesh or .poly file (or use --box)");
   c->add_option("-o,--output", args->output, "Output base name (OUT.node, OUT.ele, OUT.vtu)")
       ->required();
   c->add_option("--quality", args->quality,
@@ -129,6 +171,13 @@ void add_tetmesh_commands(CLI::App& app, const GlobalOptions& global, int* exit_
   c->add_option("--scale-to-m", args->scale_to_m,
                 "Multiply input coordinates by this to get metres (0.001 for a mesh in mm)")
       ->capture_default_str();
+  c->add_option("--box", args->box_m,
+                "Instead of IN: a structured box specimen of this size X Y Z (m)")
+      ->expected(3);
+  c->add_option("--cells", args->cells, "With --box: hexahedral cells per axis NX NY NZ")
+      ->expected(3);
+  c->add_option("--origin", args->origin_m, "With --box: its minimum corner X Y Z (m)")
+      ->expected(3);
   c->add_flag("--json", args->json, "Print one JSON object");
   c->callback([&global, args, exit_code] { *exit_code = run_tetmesh(global, *args); });
 }

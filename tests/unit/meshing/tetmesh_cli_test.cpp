@@ -57,6 +57,42 @@ TEST(TetmeshCli, SurfaceScaledToMetres) {
   EXPECT_TRUE(std::filesystem::exists(dir / "p.vtu"));
 }
 
+TEST(TetmeshCli, StructuredBoxTemplateOnTheMarkerGrid) {
+  ScratchDir dir;
+  // The 60 x 60 x 50 mm specimen with its top nodes on the 3 mm marker grid (20 cells per side).
+  const CliRun r =
+      hardcopy("tetmesh --box 0.06 0.06 0.05 --cells 20 20 4 --origin -0.03 -0.03 0 -o " +
+               (dir / "tpl").string() + " --json");
+  ASSERT_EQ(r.exit_code, 0) << r.out;
+  const auto j = nlohmann::json::parse(r.out);
+  // Counts: (20+1)(20+1)(4+1) nodes, 6 tets per cell, 2 triangles per boundary quad.
+  EXPECT_EQ(j["nodes"], 21 * 21 * 5);
+  EXPECT_EQ(j["tets"], 6 * 20 * 20 * 4);
+  EXPECT_EQ(j["boundary_faces"], 4 * (20 * 20 + 20 * 4 + 20 * 4));
+  EXPECT_NEAR(j["volume_m3"].get<double>(), 0.06 * 0.06 * 0.05, 1e-15);
+  Result<TetMesh> back = read_tetgen(dir / "tpl");
+  ASSERT_TRUE(back.ok()) << back.status().to_string();
+  EXPECT_NEAR(back->nodes.col(0).minCoeff(), -0.03, 1e-12);
+  EXPECT_NEAR(back->nodes.col(1).maxCoeff(), 0.03, 1e-12);
+  EXPECT_NEAR(back->nodes.col(2).maxCoeff(), 0.05, 1e-12);
+  double volume = 0, min_volume = 1;
+  for (Eigen::Index t = 0; t < back->num_tets(); ++t) {
+    volume += tet_signed_volume(*back, t);
+    min_volume = std::min(min_volume, tet_signed_volume(*back, t));
+  }
+  EXPECT_NEAR(volume, 0.06 * 0.06 * 0.05, 1e-12);
+  EXPECT_GT(min_volume, 0.0);  // every tet positively oriented
+  const std::string out = " -o " + (dir / "y").string();
+  EXPECT_EQ(hardcopy("tetmesh --box 0.06 0.06 -1 --cells 2 2 2" + out).exit_code, 2);
+  EXPECT_EQ(hardcopy("tetmesh --box 0.06 0.06 0.05 --cells 2 0 2" + out).exit_code, 2);
+  EXPECT_EQ(hardcopy("tetmesh " + shared_data("meshes/pinion.off").string() +
+                     " --box 1 1 1 --cells 1 1 1" + out)
+                .exit_code,
+            2);
+  EXPECT_EQ(hardcopy("tetmesh --cells 2 2 2" + out).exit_code, 2);
+  EXPECT_FALSE(std::filesystem::exists(dir / "y.node"));
+}
+
 TEST(TetmeshCli, BadInputExitsTwoAndWritesNothing) {
   ScratchDir dir;
   const std::string out = " -o " + (dir / "x").string();
