@@ -199,7 +199,7 @@ Result<std::vector<Dot>> detect_blobs(const ImageView& image, const BlobOptions&
         std::nth_element(ring.begin(), mid, ring.end());
         background = *mid;
       }
-      double sw = 0, swx = 0, swy = 0;
+      double sw = 0, swx = 0, swy = 0, sw_pos = 0;
       for (int y = y0; y <= y1; ++y) {
         const std::uint8_t* g = grey.ptr<std::uint8_t>(y);
         const int* lr = labels.ptr<int>(y);
@@ -207,13 +207,18 @@ Result<std::vector<Dot>> detect_blobs(const ImageView& image, const BlobOptions&
           if (lr[x] != 0 && lr[x] != l) continue;
           const double w = static_cast<double>(g[x]) - background;
           sw += w;
+          sw_pos += std::max(0.0, w);
           swx += w * x;
           swy += w * y;
         }
       }
       Dot d;
-      if (sw > 0.0) {
-        d.center_px = Eigen::Vector2d(swx / sw, swy / sw);
+      // A weak or inverted contrast (the negative weights cancel most of the positive ones) makes
+      // the weighted centroid meaningless: use the thresholded component's centroid then.
+      const Eigen::Vector2d weighted(swx / sw, swy / sw);
+      if (sw > 0.5 * sw_pos && sw > 0.0 && weighted.x() >= x0 && weighted.x() <= x1 &&
+          weighted.y() >= y0 && weighted.y() <= y1) {
+        d.center_px = weighted;
       } else {
         d.center_px = Eigen::Vector2d(m.sx / m.n, m.sy / m.n);
       }
