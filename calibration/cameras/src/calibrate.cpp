@@ -357,6 +357,17 @@ Result<CalibrationSummary> calibrate_rig(const std::vector<CameraObservations>& 
   // (weight = shared views). A maximum spanning tree from camera 0 (Prim) chains relative poses,
   // each averaged over the shared views.
   std::vector<Pose> cam_from_rig(nc);
+  // A chessboard with cols + rows even looks the same after a half turn, so cameras may number
+  // its corners in opposite orders (board.h, canonical_order); `flip` is that half turn in the
+  // board frame (corner id k <-> N-1-k).
+  const bool symmetric =
+      board.kind == BoardKind::kChessboard && (board.cols + board.rows) % 2 == 0 && nc > 1;
+  Pose flip;
+  flip.R = Eigen::Vector3d(-1.0, -1.0, 1.0).asDiagonal();
+  flip.t =
+      Eigen::Vector3d((board.cols - 1) * board.square_m, (board.rows - 1) * board.square_m, 0.0);
+  std::vector<std::size_t> placement = {0};
+  std::vector<std::set<int>> flipped(nc);
   std::vector<bool> placed(nc, false);
   std::vector<int> parent(nc, -1), shared_with_parent(nc, 0);
   placed[0] = true;
@@ -386,26 +397,71 @@ Result<CalibrationSummary> calibrate_rig(const std::vector<CameraObservations>& 
                       missing, cameras[0].name));
     }
     const auto a = static_cast<std::size_t>(best_a), b = static_cast<std::size_t>(best_b);
-    std::vector<Pose> rel;  // b_from_a
+    std::vector<Pose> rel;          // b_from_a
+    std::vector<Pose> rel_flipped;  // the same with b's corners numbered the other way round
     for (const auto& [view, pose_b] : cam_from_board[b]) {
       const auto it = cam_from_board[a].find(view);
-      if (it != cam_from_board[a].end()) rel.push_back(pose_b * it->second.inverse());
+      if (it == cam_from_board[a].end()) continue;
+      rel.push_back(pose_b * it->second.inverse());
+      rel_flipped.push_back(pose_b * flip * it->second.inverse());
+    }
+    if (symmetric) {
+      // A half-turn-symmetric board: each shared view gives two candidate relative poses; keep
+      // the candidate most views agree with (rotation within 5 degrees, translation within 10 %)
+      // and, per view, whichever of its two candidates is nearer to it.
+      std::vector<Pose> all = rel;
+      all.insert(all.end(), rel_flipped.begin(), rel_flipped.end());
+      const auto close = [](const Pose& p, const Pose& q) {
+        const double angle = Eigen::AngleAxisd(p.R * q.R.transpose()).angle();
+        return angle < 5.0 * 3.14159265358979 / 180.0 &&
+               (p.t - q.t).norm() < 0.1 * std::max(p.t.norm(), q.t.norm()) + 1e-9;
+      };
+      std::size_t best = 0;
+      int best_votes = -1;
+      for (std::size_t i = 0; i < all.size(); ++i) {
+        int votes = 0;
+        for (const Pose& q : all) votes += close(all[i], q) ? 1 : 0;
+        if (votes > best_votes) {
+          best_votes = votes;
+          best = i;
+        }
+      }
+      std::vector<Pose> chosen;
+      for (std::size_t i = 0; i < rel.size(); ++i) {
+        const double d0 = Eigen::AngleAxisd(rel[i].R * all[best].R.transpose()).angle();
+        const double d1 = Eigen::AngleAxisd(rel_flipped[i].R * all[best].R.transpose()).angle();
+        chosen.push_back(d0 <= d1 ? rel[i] : rel_flipped[i]);
+      }
+      rel = chosen;
     }
     cam_from_rig[b] = average(rel) * cam_from_rig[a];
+    placement.push_back(b);
     placed[b] = true;
     parent[b] = best_a;
     shared_with_parent[b] = best_n;
   }
 
-  // 3. Board poses in the rig frame: from the first camera that saw each view.
+  // 3. Board poses in the rig frame: from the first camera (in placement order) that saw each
+  // view; on a symmetric board the later cameras' corner order is matched to it.
   std::map<int, std::array<double, 6>> view_params;
-  for (std::size_t c = 0; c < nc; ++c)
-    for (const auto& [view, pose] : cam_from_board[c])
-      if (!view_params.count(view)) {
+  for (std::size_t c : placement)
+    for (auto& [view, pose] : cam_from_board[c]) {
+      const Pose rig_from_board = cam_from_rig[c].inverse() * pose;
+      const auto it = view_params.find(view);
+      if (it == view_params.end()) {
         std::array<double, 6> p;
-        to_params(cam_from_rig[c].inverse() * pose, p.data());
+        to_params(rig_from_board, p.data());
         view_params[view] = p;
+      } else if (symmetric) {
+        const Pose known = from_params(it->second.data());
+        const Pose other = rig_from_board * flip;
+        if (Eigen::AngleAxisd(other.R * known.R.transpose()).angle() <
+            Eigen::AngleAxisd(rig_from_board.R * known.R.transpose()).angle()) {
+          flipped[c].insert(view);
+          pose = pose * flip;
+        }
       }
+    }
 
   // 4. The joint problem.
   std::vector<std::array<double, kIntrinsics>> intr(nc);
@@ -429,9 +485,11 @@ Result<CalibrationSummary> calibrate_rig(const std::vector<CameraObservations>& 
   for (std::size_t c = 0; c < nc; ++c) {
     for (const ViewObservation& v : cameras[c].views) {
       if (!cam_from_board[c].count(v.view)) continue;  // dropped (too few corners)
+      const bool flip_view = flipped[c].count(v.view) > 0;
       for (std::size_t i = 0; i < v.ids.size(); ++i) {
+        const int id = flip_view ? board.corner_count() - 1 - v.ids[i] : v.ids[i];
         auto* cost = new ceres::AutoDiffCostFunction<ReprojectionCost, 2, kIntrinsics, 6, 6>(
-            new ReprojectionCost(board.corner(v.ids[i]), v.pixels[i], options.fix_aspect_ratio));
+            new ReprojectionCost(board.corner(id), v.pixels[i], options.fix_aspect_ratio));
         ceres::LossFunction* loss = nullptr;
         if (options.loss == RobustLoss::kHuber)
           loss = new ceres::HuberLoss(options.loss_scale_px);
