@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <chrono>
 #include <map>
+#include <numbers>
 
 #include "common/json.h"
 #include "processing/tracking/session_tracking.h"
@@ -48,6 +49,40 @@ Result<HandEyeSessionData> read_hand_eye_session(const std::filesystem::path& se
         "{}: no arm state channel{} (hand-eye needs the arm's "
         "poses; record with the automated protocol)",
         name, options.arm_device.empty() ? "" : " of device '" + options.arm_device + "'"));
+  // The simulator's true cameras (metadata "sim_cameras", session_layout.h): the rig frame is the
+  // calibration's first camera's frame, so the true world_from_rig is that camera's pose.
+  std::optional<Eigen::Isometry3d> truth_x;
+  if (!calibration.cameras.empty()) {
+    HC_ASSIGN_OR_RETURN(std::vector<rec::Metadata> metadata, reader.read_metadata());
+    for (const rec::Metadata& m : metadata) {
+      if (m.name != hc::rig::kMetadataSimCameras) continue;
+      const auto js = m.metadata.find("json");
+      if (js == m.metadata.end()) continue;
+      Result<Json> j = parse_json(js->second, "sim_cameras");
+      if (!j.ok() || !j->is_object()) continue;
+      const auto cam = j->find(calibration.cameras.front().name);
+      if (cam == j->end() || !cam->is_object()) continue;
+      try {  // nlohmann throws on wrong types: no truth then, not an error
+        Eigen::Matrix3d r;
+        Eigen::Vector3d t;
+        for (int a = 0; a < 3; ++a) {
+          t[a] = (*cam)["t_m"].at(static_cast<std::size_t>(a)).get<double>();
+          for (int b = 0; b < 3; ++b)
+            r(a, b) = (*cam)["R"]
+                          .at(static_cast<std::size_t>(a))
+                          .at(static_cast<std::size_t>(b))
+                          .get<double>();
+        }
+        if (r.allFinite() && t.allFinite()) {
+          Eigen::Isometry3d cam_from_world = Eigen::Isometry3d::Identity();
+          cam_from_world.linear() = r;
+          cam_from_world.translation() = t;
+          truth_x = cam_from_world.inverse();
+        }
+      } catch (const Json::exception&) {
+      }
+    }
+  }
   std::vector<ArmSample> states;
   std::map<std::uint64_t, std::array<Eigen::Vector3d, 2>> truth;  // trigger index -> markers
   rec::ReadOptions ro;
@@ -93,12 +128,18 @@ Result<HandEyeSessionData> read_hand_eye_session(const std::filesystem::path& se
 
   tracking::SessionReadOptions so;
   so.max_steps = options.max_steps;
+  so.blobs.threshold = markers::ThresholdMethod::kLocalMean;
+  so.blobs.local_offset = options.marker_local_offset;
+  so.blobs.local_block_px = options.marker_local_block_px;
+  so.blobs.min_area_px = options.min_marker_area_px;
   HC_ASSIGN_OR_RETURN(tracking::SessionDetections det,
                       tracking::read_session_detections(session, calibration, so));
   HandEyeSessionData out;
+  out.truth_world_from_rig = truth_x;
   out.problem.markers = 2;
   out.steps = det.steps.size();
   bool all_by_specimen = true;
+  std::optional<Eigen::Vector3d> ref_axis;
   for (const tracking::SessionStep& st : det.steps) {
     const auto it = std::upper_bound(states.begin(), states.end(), st.edge_host_ns,
                                      [](std::int64_t t, const ArmSample& a) { return t < a.t_ns; });
@@ -122,6 +163,10 @@ Result<HandEyeSessionData> read_hand_eye_session(const std::filesystem::path& se
       if ((isolated[1] - c).norm() < (isolated[0] - c).norm()) std::swap(isolated[0], isolated[1]);
     } else {
       all_by_specimen = false;
+      // Keep one labelling through the session: the shaft points the same way at every pose of
+      // a 4-DOF arm, so orient each pair along the first pair's direction.
+      if (!ref_axis) ref_axis = isolated[1] - isolated[0];
+      if ((isolated[1] - isolated[0]).dot(*ref_axis) < 0.0) std::swap(isolated[0], isolated[1]);
     }
     const std::size_t pose_index = out.problem.world_from_tool.size();
     out.problem.world_from_tool.push_back(
@@ -148,6 +193,10 @@ Json HandEyeSessionResult::to_json() const {
     j["truth_rms_error_m"] = truth_rms_m;
     j["truth_max_error_m"] = truth_max_m;
   }
+  if (has_truth_transform) {
+    j["truth_translation_error_m"] = truth_translation_error_m;
+    j["truth_rotation_error_deg"] = truth_rotation_error_deg;
+  }
   return j;
 }
 
@@ -158,17 +207,35 @@ Result<HandEyeSessionResult> calibrate_hand_eye_from_session(const std::filesyst
                       read_hand_eye_session(session, calibration, options));
   HandEyeOptions ho = options.solver;
   ho.marker0_tool_z_m = options.marker0_tool_z_m;
+  {
+    // A session whose arm never turns (the automated plans press straight down at yaw 0) leaves
+    // the offsets unobservable (hand_eye.h): hold marker 0 on the shaft axis, as the straight
+    // probe shaft puts it, at its known distance from the tip.
+    bool turns = false;
+    for (const Eigen::Isometry3d& t : data.problem.world_from_tool)
+      if (Eigen::AngleAxisd(data.problem.world_from_tool.front().linear().transpose() * t.linear())
+              .angle() > ho.min_rotation_rad)
+        turns = true;
+    if (!turns && !data.problem.world_from_tool.empty() && ho.known_offsets_m.empty())
+      ho.known_offsets_m = {Eigen::Vector3d(0.0, 0.0, options.marker0_tool_z_m), std::nullopt};
+  }
   Result<HandEyeResult> best = solve_hand_eye(data.problem, ho);
-  if (!data.markers_ordered_by_specimen) {
-    // Without specimen dots the two markers' order is unknown: try the swapped labelling.
-    HandEyeProblem swapped = data.problem;
-    for (auto& o : swapped.observations) o.marker = 1 - o.marker;
-    Result<HandEyeResult> other = solve_hand_eye(swapped, ho);
-    if (other.ok() && (!best.ok() || other->rms_m < best->rms_m)) {
-      best = std::move(other);
-      data.problem = std::move(swapped);
-      for (std::size_t k = 0; k + 1 < data.truth_world_m.size(); k += 2)
-        std::swap(data.truth_world_m[k], data.truth_world_m[k + 1]);
+  if (!data.markers_ordered_by_specimen && best.ok()) {
+    // Without specimen dots the labels come from the first step's order. Marker 0 is the one
+    // nearer the tip, i.e. lower along the tool's z. The solution's rotation does not depend on
+    // the labelling (only the offsets and translation do), so check in the world frame which
+    // label sits lower along tool z and swap when it is marker 1.
+    double along = 0.0;
+    for (std::size_t k = 0; k + 1 < data.problem.observations.size(); k += 2) {
+      const auto& a0 = data.problem.observations[k];
+      const auto& a1 = data.problem.observations[k + 1];
+      const Eigen::Vector3d d = best->world_from_rig.linear() * (a1.p_rig_m - a0.p_rig_m);
+      const Eigen::Vector3d tool_z = data.problem.world_from_tool[a0.pose].linear().col(2);
+      along += (a1.marker == 1 ? 1.0 : -1.0) * d.dot(tool_z);
+    }
+    if (along < 0.0) {
+      for (auto& o : data.problem.observations) o.marker = 1 - o.marker;
+      best = solve_hand_eye(data.problem, ho);
     }
   }
   if (!best.ok())
@@ -181,10 +248,12 @@ Result<HandEyeSessionResult> calibrate_hand_eye_from_session(const std::filesyst
   double ss = 0.0;
   std::size_t n = 0;
   for (std::size_t k = 0; k < data.problem.observations.size(); ++k) {
-    if (!data.truth_world_m[k]) continue;
-    const double e = (out.solution.world_from_rig * data.problem.observations[k].p_rig_m -
-                      *data.truth_world_m[k])
-                         .norm();
+    if (!data.truth_world_m[k] || !data.truth_world_m[k ^ 1]) continue;
+    // Against the nearer of the step's two true markers (observations come in pairs per step), so
+    // the comparison does not depend on which label the solver kept.
+    const Eigen::Vector3d w = out.solution.world_from_rig * data.problem.observations[k].p_rig_m;
+    const double e =
+        std::min((w - *data.truth_world_m[k]).norm(), (w - *data.truth_world_m[k ^ 1]).norm());
     ss += e * e;
     out.truth_max_m = std::max(out.truth_max_m, e);
     ++n;
@@ -192,6 +261,17 @@ Result<HandEyeSessionResult> calibrate_hand_eye_from_session(const std::filesyst
   if (n > 0) {
     out.has_truth = true;
     out.truth_rms_m = std::sqrt(ss / static_cast<double>(n));
+  }
+  if (data.truth_world_from_rig) {
+    out.has_truth_transform = true;
+    out.truth_translation_error_m =
+        (out.solution.world_from_rig.translation() - data.truth_world_from_rig->translation())
+            .norm();
+    out.truth_rotation_error_deg =
+        Eigen::AngleAxisd(out.solution.world_from_rig.linear().transpose() *
+                          data.truth_world_from_rig->linear())
+            .angle() *
+        180.0 / std::numbers::pi;
   }
   return out;
 }
