@@ -48,7 +48,7 @@ TEST(Plan, ExampleCalibrationPlanReads) {
   ASSERT_TRUE(plan.ok()) << plan.status().to_string();
   EXPECT_EQ(plan->protocol, Protocol::kCalibration);
   const CalibrationPlan& c = plan->calibration;
-  EXPECT_EQ(c.board_cols, 8);
+  EXPECT_EQ(c.board_cols, 9);
   EXPECT_EQ(c.board_rows, 6);
   EXPECT_DOUBLE_EQ(c.square_m, 0.008);
   EXPECT_EQ(c.poses, 20);

@@ -206,8 +206,10 @@ TEST(Rigd, KillNineMidCaptureThenRecoverAndVerify) {
   // Wait until about a third of the session (~3.2 MB compressed) is on disk, then kill
   // without warning.
   for (int i = 0; i < 600; ++i) {
+    // (file_size with an error code returns uintmax_t(-1) while the file does not exist yet.)
     std::error_code ec;
-    if (std::filesystem::file_size(session, ec) > (1u << 20)) break;
+    const std::uintmax_t size = std::filesystem::file_size(session, ec);
+    if (!ec && size > (1u << 20)) break;
     std::this_thread::sleep_for(std::chrono::milliseconds(50));
   }
   rigd.kill9();

@@ -358,7 +358,7 @@ TEST(Session, CalibrationCaptureShowsTheBoardInEveryFrameSet) {
   const Result<Json> pj = parse_json(c.metadata.at("plan").at("json"), "plan");
   ASSERT_TRUE(pj.ok());
   EXPECT_EQ((*pj)["protocol"], "calibration");
-  EXPECT_EQ((*pj)["board"]["cols"], 8);
+  EXPECT_EQ((*pj)["board"]["cols"], 9);
   // The true cameras: the embedded default's cam0 at (0.3, 0, 0.3) looking at (0, 0, 0.05),
   // f = 400 px, 320 x 240 (rig_config.cpp), so its centre and focal length come back exactly.
   const Result<Json> cams =
