@@ -25,6 +25,15 @@ void check(const hc::rig::Plan& plan) {
       const double n = std::hypot(l.direction[0], l.direction[1], l.direction[2]);
       if (!(std::abs(n - 1.0) < 1e-9)) __builtin_trap();
     }
+  } else if (plan.protocol == Protocol::kCalibration) {
+    const hc::rig::CalibrationPlan& p = plan.calibration;
+    if (p.board_cols < 2 || p.board_cols > 64 || p.board_rows < 2 || p.board_rows > 64)
+      __builtin_trap();
+    if (!(p.square_m > 0 && p.square_m <= 1.0)) __builtin_trap();
+    if (p.poses < 1 || p.poses > 1000) __builtin_trap();
+    if (!(p.dwell_s >= 0 && p.dwell_s <= 60) || !(p.max_tilt_deg >= 0 && p.max_tilt_deg <= 80))
+      __builtin_trap();
+    if (plan.expected_triggers() != p.poses) __builtin_trap();
   } else {
     const hc::rig::HandHeldPlan& p = plan.hand_held;
     if (!(p.trigger.rate_hz > 0) || !(p.trigger.pulse_width_s < 1.0 / p.trigger.rate_hz))
