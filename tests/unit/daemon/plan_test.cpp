@@ -5,6 +5,7 @@
 #include <string>
 
 #include <Eigen/Core>
+#include <Eigen/Geometry>
 
 #include <algorithm>
 
@@ -66,6 +67,23 @@ TEST(Plan, ExampleTrackingPlanReads) {
   EXPECT_EQ(plan->protocol, Protocol::kAutomated);
   EXPECT_EQ(plan->automated.locations.size(), 1u);
   EXPECT_EQ(plan->expected_triggers(), 30);  // the thesis's minimum of 30 steps, one level
+}
+
+TEST(Plan, ExampleHandEyePlanReads) {
+  Result<Plan> plan = load_plan(example("hand_eye.yaml"));
+  ASSERT_TRUE(plan.ok()) << plan.status().to_string();
+  EXPECT_EQ(plan->protocol, Protocol::kAutomated);
+  const auto& l = plan->automated.locations;
+  ASSERT_EQ(l.size(), 4u);
+  EXPECT_EQ(plan->expected_triggers(), 120);  // 4 locations x 30 steps
+  // Hand-eye needs locations that are not collinear: the first three span a triangle.
+  const Eigen::Vector3d a(l[1].position_m[0] - l[0].position_m[0],
+                          l[1].position_m[1] - l[0].position_m[1],
+                          l[1].position_m[2] - l[0].position_m[2]);
+  const Eigen::Vector3d b(l[2].position_m[0] - l[0].position_m[0],
+                          l[2].position_m[1] - l[0].position_m[1],
+                          l[2].position_m[2] - l[0].position_m[2]);
+  EXPECT_GT(a.cross(b).norm(), 1e-4);  // m^2: 20 mm x 20 mm
 }
 
 TEST(Plan, DirectionIsNormalised) {
