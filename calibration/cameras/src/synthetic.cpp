@@ -111,14 +111,16 @@ std::vector<Eigen::Isometry3d> random_board_poses(const std::vector<CameraModel>
     R.col(2) = -to_cam;
     R.col(0) = Eigen::Vector3d(0, 1, 0).cross(R.col(2)).normalized();
     R.col(1) = R.col(2).cross(R.col(0));
-    const Eigen::Matrix3d tilt =
-        (Eigen::AngleAxisd(rad(tilt_deg) * u(rng), Eigen::Vector3d::UnitX()) *
-         Eigen::AngleAxisd(rad(tilt_deg) * u(rng), Eigen::Vector3d::UnitY()) *
-         Eigen::AngleAxisd(rad(20.0) * u(rng), Eigen::Vector3d::UnitZ()))
-            .toRotationMatrix();
+    // Random draws in separate statements (argument evaluation order is unspecified).
+    const double ax = u(rng), ay = u(rng), az = u(rng);
+    const Eigen::Matrix3d tilt = (Eigen::AngleAxisd(rad(tilt_deg) * ax, Eigen::Vector3d::UnitX()) *
+                                  Eigen::AngleAxisd(rad(tilt_deg) * ay, Eigen::Vector3d::UnitY()) *
+                                  Eigen::AngleAxisd(rad(20.0) * az, Eigen::Vector3d::UnitZ()))
+                                     .toRotationMatrix();
     Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
     pose.linear() = R * tilt;
-    const Eigen::Vector3d c = look + offset_m * Eigen::Vector3d(u(rng), u(rng), u(rng));
+    const double ox = u(rng), oy = u(rng), oz = u(rng);
+    const Eigen::Vector3d c = look + offset_m * Eigen::Vector3d(ox, oy, oz);
     pose.translation() = c - pose.linear() * board_centre;
     int seen = 0;
     for (const CameraModel& cam : rig) seen += board_visible(cam, board, pose) ? 1 : 0;
@@ -146,7 +148,14 @@ std::vector<CameraObservations> synthetic_observations(const std::vector<CameraM
       for (int id = 0; id < board.corner_count(); ++id) {
         const Eigen::Vector2d p = *c.project(poses[v] * board.corner(id));
         view.ids.push_back(id);
-        view.pixels.push_back(noise_px > 0 ? Eigen::Vector2d(p.x() + n(rng), p.y() + n(rng)) : p);
+        Eigen::Vector2d q = p;
+        if (noise_px > 0) {
+          // Two statements: the order of evaluation of function arguments is unspecified, and
+          // g++ and clang draw them in opposite orders (different data from the same seed).
+          q.x() += n(rng);
+          q.y() += n(rng);
+        }
+        view.pixels.push_back(q);
       }
       obs.views.push_back(std::move(view));
     }

@@ -109,7 +109,7 @@ void solver_case(int cameras, double sigma, int poses, std::uint32_t seed, bool 
 
 TEST(SyntheticRig, SevenCamerasSolverExactData) { solver_case(7, 0.0, 30, 41, true); }
 
-TEST(SyntheticRig, ThreeCamerasSolverWithNoise) { solver_case(3, 0.2, 30, 11, false); }
+TEST(SyntheticRig, ThreeCamerasSolverWithNoise) { solver_case(3, 0.2, 60, 11, false); }
 TEST(SyntheticRig, SevenCamerasSolverSomeNeverSeeCameraZero) { solver_case(7, 0.1, 40, 21, true); }
 TEST(SyntheticRig, SevenCamerasSolverNoise03) { solver_case(7, 0.3, 80, 31, true); }
 

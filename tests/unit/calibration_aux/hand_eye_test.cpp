@@ -52,13 +52,17 @@ Synthetic four_dof(int n, double sigma_m, std::uint64_t seed, double yaw_range =
   std::uniform_real_distribution<double> u(-1.0, 1.0);
   std::normal_distribution<double> g(0.0, sigma_m);
   for (int i = 0; i < n; ++i) {
-    const Eigen::Isometry3d t = arm_pose_transform(
-        0.07 * u(rng), 0.07 * u(rng), fixed_z ? 0.08 : 0.08 + 0.06 * u(rng), yaw_range * u(rng));
+    // Draws in separate statements: argument evaluation order is unspecified (g++ != clang).
+    const double x = 0.07 * u(rng), y = 0.07 * u(rng);
+    const double z = fixed_z ? 0.08 : 0.08 + 0.06 * u(rng);
+    const double yaw = yaw_range * u(rng);
+    const Eigen::Isometry3d t = arm_pose_transform(x, y, z, yaw);
     s.problem.world_from_tool.push_back(t);
     for (std::size_t j = 0; j < 2; ++j) {
       const Eigen::Vector3d p = s.truth.inverse() * (t * s.offsets[j]);
+      const double nx = g(rng), ny = g(rng), nz = g(rng);
       s.problem.observations.push_back(
-          {static_cast<std::size_t>(i), j, p + Eigen::Vector3d(g(rng), g(rng), g(rng))});
+          {static_cast<std::size_t>(i), j, p + Eigen::Vector3d(nx, ny, nz)});
     }
   }
   s.problem.markers = 2;
@@ -223,11 +227,13 @@ TEST(HandEye, AgreesWithOpenCvCalibrateHandEyeOnSixDofPoses) {
   for (int i = 0; i < 30; ++i) {
     Eigen::Isometry3d t = Eigen::Isometry3d::Identity();
     // Yaw within +-60 deg: Tsai's method degenerates for relative rotations near 180 deg.
-    t.linear() = (Eigen::AngleAxisd(std::numbers::pi / 3.0 * u(rng), Eigen::Vector3d::UnitZ()) *
-                  Eigen::AngleAxisd(0.5 * u(rng), Eigen::Vector3d::UnitX()) *
-                  Eigen::AngleAxisd(0.5 * u(rng), Eigen::Vector3d::UnitY()))
+    const double rz = u(rng), rx = u(rng), ry = u(rng);
+    t.linear() = (Eigen::AngleAxisd(std::numbers::pi / 3.0 * rz, Eigen::Vector3d::UnitZ()) *
+                  Eigen::AngleAxisd(0.5 * rx, Eigen::Vector3d::UnitX()) *
+                  Eigen::AngleAxisd(0.5 * ry, Eigen::Vector3d::UnitY()))
                      .toRotationMatrix();
-    t.translation() = Eigen::Vector3d(0.05 * u(rng), 0.05 * u(rng), 0.07 + 0.04 * u(rng));
+    const double tx = u(rng), ty = u(rng), tz = u(rng);
+    t.translation() = Eigen::Vector3d(0.05 * tx, 0.05 * ty, 0.07 + 0.04 * tz);
     problem.world_from_tool.push_back(t);
     Eigen::Matrix3Xd src(3, 4), dst(3, 4);
     for (std::size_t j = 0; j < target.size(); ++j) {
