@@ -93,6 +93,33 @@ Moments component_moments(const cv::Mat& labels, int label, const ComponentStats
   return m;
 }
 
+// The steps both detectors share (thesis 4.4.2): morphological closing of the mask, 8-connected
+// components, then the area, image-border and roundness filters. Calls
+// fn(labels, label, stats, moments, roundness) for every component that passes.
+template <typename Options, typename Fn>
+void for_each_dot_component(cv::Mat& mask, const cv::Mat& src, const ImageView& image,
+                            const Options& options, Fn&& fn) {
+  if (options.closing_radius_px > 0) {
+    const int k = 2 * options.closing_radius_px + 1;
+    cv::morphologyEx(mask, mask, cv::MORPH_CLOSE,
+                     cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(k, k)));
+  }
+  cv::Mat labels, stats, centroids;
+  const int n = cv::connectedComponentsWithStats(mask, labels, stats, centroids, 8, CV_32S);
+  for (int l = 1; l < n; ++l) {
+    const ComponentStats c{stats.at<int>(l, cv::CC_STAT_LEFT), stats.at<int>(l, cv::CC_STAT_TOP),
+                           stats.at<int>(l, cv::CC_STAT_WIDTH),
+                           stats.at<int>(l, cv::CC_STAT_HEIGHT),
+                           stats.at<int>(l, cv::CC_STAT_AREA)};
+    if (c.area < options.min_area_px || c.area > options.max_area_px) continue;
+    if (options.drop_border_dots && touches_border(c, image.width, image.height)) continue;
+    const Moments m = component_moments(labels, l, c, src);
+    const double roundness = roundness_from_moments(m.n, m.sx, m.sy, m.sxx, m.syy, m.sxy);
+    if (roundness < options.min_roundness) continue;
+    fn(labels, l, c, m, roundness);
+  }
+}
+
 }  // namespace
 
 Status ImageView::validate() const {
@@ -158,75 +185,65 @@ Result<std::vector<Dot>> detect_blobs(const ImageView& image, const BlobOptions&
       cv::adaptiveThreshold(grey, mask, 255, cv::ADAPTIVE_THRESH_MEAN_C, cv::THRESH_BINARY,
                             options.local_block_px, -options.local_offset);
     }
-    if (options.closing_radius_px > 0) {
-      const int k = 2 * options.closing_radius_px + 1;
-      cv::morphologyEx(mask, mask, cv::MORPH_CLOSE,
-                       cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(k, k)));
-    }
-    cv::Mat labels, stats, centroids;
-    const int n = cv::connectedComponentsWithStats(mask, labels, stats, centroids, 8, CV_32S);
-    for (int l = 1; l < n; ++l) {
-      ComponentStats c{stats.at<int>(l, cv::CC_STAT_LEFT), stats.at<int>(l, cv::CC_STAT_TOP),
-                       stats.at<int>(l, cv::CC_STAT_WIDTH), stats.at<int>(l, cv::CC_STAT_HEIGHT),
-                       stats.at<int>(l, cv::CC_STAT_AREA)};
-      if (c.area < options.min_area_px || c.area > options.max_area_px) continue;
-      if (options.drop_border_dots && touches_border(c, image.width, image.height)) continue;
-      const Moments m = component_moments(labels, l, c, src);
-      const double roundness = roundness_from_moments(m.n, m.sx, m.sy, m.sxx, m.syy, m.sxy);
-      if (roundness < options.min_roundness) continue;
-
-      // Intensity-weighted centroid over the box plus a margin, weight = grey - background, where
-      // the background is the median of the window's outer ring (outside the dot by the margin).
-      // Pixels of other components are skipped. The weights are not clamped at zero: clamping
-      // would turn zero-mean noise into a pull towards the window centre.
-      const int m_px = options.centroid_margin_px;
-      const int x0 = std::max(0, c.x - m_px), y0 = std::max(0, c.y - m_px);
-      const int x1 = std::min(image.width - 1, c.x + c.w - 1 + m_px);
-      const int y1 = std::min(image.height - 1, c.y + c.h - 1 + m_px);
-      std::vector<std::uint8_t> ring;
-      ring.reserve(static_cast<std::size_t>(2 * (x1 - x0 + y1 - y0 + 2)));
-      for (int y = y0; y <= y1; ++y) {
-        const std::uint8_t* g = grey.ptr<std::uint8_t>(y);
-        const int* lr = labels.ptr<int>(y);
-        for (int x = x0; x <= x1; ++x) {
-          const bool edge = (y == y0 || y == y1 || x == x0 || x == x1);
-          if (edge && (lr[x] == 0)) ring.push_back(g[x]);
-        }
-      }
-      double background = 0.0;
-      if (!ring.empty()) {
-        auto mid = ring.begin() + static_cast<std::ptrdiff_t>(ring.size() / 2);
-        std::nth_element(ring.begin(), mid, ring.end());
-        background = *mid;
-      }
-      double sw = 0, swx = 0, swy = 0, sw_pos = 0;
-      for (int y = y0; y <= y1; ++y) {
-        const std::uint8_t* g = grey.ptr<std::uint8_t>(y);
-        const int* lr = labels.ptr<int>(y);
-        for (int x = x0; x <= x1; ++x) {
-          if (lr[x] != 0 && lr[x] != l) continue;
-          const double w = static_cast<double>(g[x]) - background;
-          sw += w;
-          sw_pos += std::max(0.0, w);
-          swx += w * x;
-          swy += w * y;
-        }
-      }
-      Dot d;
-      // A weak or inverted contrast (the negative weights cancel most of the positive ones) makes
-      // the weighted centroid meaningless: use the thresholded component's centroid then.
-      const Eigen::Vector2d weighted(swx / sw, swy / sw);
-      if (sw > 0.5 * sw_pos && sw > 0.0 && weighted.x() >= x0 && weighted.x() <= x1 &&
-          weighted.y() >= y0 && weighted.y() <= y1) {
-        d.center_px = weighted;
-      } else {
-        d.center_px = Eigen::Vector2d(m.sx / m.n, m.sy / m.n);
-      }
-      d.area_px = c.area;
-      d.roundness = roundness;
-      d.mean_color = m.color_sum / m.n;
-      dots.push_back(d);
-    }
+    for_each_dot_component(mask, src, image, options,
+                           [&](const cv::Mat& labels, int l, const ComponentStats& c,
+                               const Moments& m, double roundness) {
+                             // Intensity-weighted centroid over the box plus a margin, weight =
+                             // grey - background, where the background is the median of the
+                             // window's outer ring (outside the dot by the margin). Pixels of other
+                             // components are skipped. The weights are not clamped at zero:
+                             // clamping would turn zero-mean noise into a pull towards the window
+                             // centre.
+                             const int m_px = options.centroid_margin_px;
+                             const int x0 = std::max(0, c.x - m_px), y0 = std::max(0, c.y - m_px);
+                             const int x1 = std::min(image.width - 1, c.x + c.w - 1 + m_px);
+                             const int y1 = std::min(image.height - 1, c.y + c.h - 1 + m_px);
+                             std::vector<std::uint8_t> ring;
+                             ring.reserve(static_cast<std::size_t>(2 * (x1 - x0 + y1 - y0 + 2)));
+                             for (int y = y0; y <= y1; ++y) {
+                               const std::uint8_t* g = grey.ptr<std::uint8_t>(y);
+                               const int* lr = labels.ptr<int>(y);
+                               for (int x = x0; x <= x1; ++x) {
+                                 const bool edge = (y == y0 || y == y1 || x == x0 || x == x1);
+                                 if (edge && (lr[x] == 0)) ring.push_back(g[x]);
+                               }
+                             }
+                             double background = 0.0;
+                             if (!ring.empty()) {
+                               auto mid =
+                                   ring.begin() + static_cast<std::ptrdiff_t>(ring.size() / 2);
+                               std::nth_element(ring.begin(), mid, ring.end());
+                               background = *mid;
+                             }
+                             double sw = 0, swx = 0, swy = 0, sw_pos = 0;
+                             for (int y = y0; y <= y1; ++y) {
+                               const std::uint8_t* g = grey.ptr<std::uint8_t>(y);
+                               const int* lr = labels.ptr<int>(y);
+                               for (int x = x0; x <= x1; ++x) {
+                                 if (lr[x] != 0 && lr[x] != l) continue;
+                                 const double w = static_cast<double>(g[x]) - background;
+                                 sw += w;
+                                 sw_pos += std::max(0.0, w);
+                                 swx += w * x;
+                                 swy += w * y;
+                               }
+                             }
+                             Dot d;
+                             // A weak or inverted contrast (the negative weights cancel most of the
+                             // positive ones) makes the weighted centroid meaningless: use the
+                             // thresholded component's centroid then.
+                             const Eigen::Vector2d weighted(swx / sw, swy / sw);
+                             if (sw > 0.5 * sw_pos && sw > 0.0 && weighted.x() >= x0 &&
+                                 weighted.x() <= x1 && weighted.y() >= y0 && weighted.y() <= y1) {
+                               d.center_px = weighted;
+                             } else {
+                               d.center_px = Eigen::Vector2d(m.sx / m.n, m.sy / m.n);
+                             }
+                             d.area_px = c.area;
+                             d.roundness = roundness;
+                             d.mean_color = m.color_sum / m.n;
+                             dots.push_back(d);
+                           });
   });
   HC_RETURN_IF_ERROR(st);
   std::sort(dots.begin(), dots.end(), [](const Dot& a, const Dot& b) {
@@ -264,53 +281,41 @@ Result<std::vector<Dot>> detect_color_dots(const ImageView& image, const ColorDo
       const ColorClass& cc = options.colors[ci];
       cv::Mat mask;
       cv::inRange(lab, to_cv(cc.lab_min), to_cv(cc.lab_max), mask);
-      if (options.closing_radius_px > 0) {
-        const int k = 2 * options.closing_radius_px + 1;
-        cv::morphologyEx(mask, mask, cv::MORPH_CLOSE,
-                         cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(k, k)));
-      }
-      cv::Mat labels, stats, centroids;
-      const int n = cv::connectedComponentsWithStats(mask, labels, stats, centroids, 8, CV_32S);
       const Eigen::Vector3d centre = 0.5 * (cc.lab_min + cc.lab_max);
       const Eigen::Vector3d half =
           (0.5 * (cc.lab_max - cc.lab_min)).cwiseMax(Eigen::Vector3d::Constant(1e-6));
       std::vector<Dot> class_dots;
-      for (int l = 1; l < n; ++l) {
-        ComponentStats c{stats.at<int>(l, cv::CC_STAT_LEFT), stats.at<int>(l, cv::CC_STAT_TOP),
-                         stats.at<int>(l, cv::CC_STAT_WIDTH), stats.at<int>(l, cv::CC_STAT_HEIGHT),
-                         stats.at<int>(l, cv::CC_STAT_AREA)};
-        if (c.area < options.min_area_px || c.area > options.max_area_px) continue;
-        if (options.drop_border_dots && touches_border(c, image.width, image.height)) continue;
-        const Moments m = component_moments(labels, l, c, src);
-        const double roundness = roundness_from_moments(m.n, m.sx, m.sy, m.sxx, m.syy, m.sxy);
-        if (roundness < options.min_roundness) continue;
-        double sw = 0, swx = 0, swy = 0;
-        for (int y = c.y; y < c.y + c.h; ++y) {
-          const int* lr = labels.ptr<int>(y);
-          const cv::Vec3b* lrow = lab.ptr<cv::Vec3b>(y);
-          for (int x = c.x; x < c.x + c.w; ++x) {
-            if (lr[x] != l) continue;
-            double w = 1.0;
-            if (options.weighted_centroid) {
-              const Eigen::Vector3d v(lrow[x][0] * 100.0 / 255.0, lrow[x][1] - 128.0,
-                                      lrow[x][2] - 128.0);
-              const double dist = ((v - centre).cwiseAbs().cwiseQuotient(half)).maxCoeff();
-              // Pixels the closing added (outside the box) still count a little.
-              w = std::max(0.05, 1.0 - 0.5 * dist);
+      for_each_dot_component(
+          mask, src, image, options,
+          [&](const cv::Mat& labels, int l, const ComponentStats& c, const Moments& m,
+              double roundness) {
+            double sw = 0, swx = 0, swy = 0;
+            for (int y = c.y; y < c.y + c.h; ++y) {
+              const int* lr = labels.ptr<int>(y);
+              const cv::Vec3b* lrow = lab.ptr<cv::Vec3b>(y);
+              for (int x = c.x; x < c.x + c.w; ++x) {
+                if (lr[x] != l) continue;
+                double w = 1.0;
+                if (options.weighted_centroid) {
+                  const Eigen::Vector3d v(lrow[x][0] * 100.0 / 255.0, lrow[x][1] - 128.0,
+                                          lrow[x][2] - 128.0);
+                  const double dist = ((v - centre).cwiseAbs().cwiseQuotient(half)).maxCoeff();
+                  // Pixels the closing added (outside the box) still count a little.
+                  w = std::max(0.05, 1.0 - 0.5 * dist);
+                }
+                sw += w;
+                swx += w * x;
+                swy += w * y;
+              }
             }
-            sw += w;
-            swx += w * x;
-            swy += w * y;
-          }
-        }
-        Dot d;
-        d.center_px = Eigen::Vector2d(swx / sw, swy / sw);
-        d.area_px = c.area;
-        d.roundness = roundness;
-        d.mean_color = m.color_sum / m.n;
-        d.color_class = static_cast<int>(ci);
-        class_dots.push_back(d);
-      }
+            Dot d;
+            d.center_px = Eigen::Vector2d(swx / sw, swy / sw);
+            d.area_px = c.area;
+            d.roundness = roundness;
+            d.mean_color = m.color_sum / m.n;
+            d.color_class = static_cast<int>(ci);
+            class_dots.push_back(d);
+          });
       std::sort(class_dots.begin(), class_dots.end(), [](const Dot& a, const Dot& b) {
         return a.center_px.y() != b.center_px.y() ? a.center_px.y() < b.center_px.y()
                                                   : a.center_px.x() < b.center_px.x();
