@@ -10,13 +10,13 @@
 #include <unistd.h>
 #include <sstream>
 
-#include <array>
 #include <chrono>
 #include <cstdio>
 #include <fstream>
 #include <string>
 #include <thread>
 
+#include "cli_run.h"
 #include "common/json.h"
 #include "rig_daemon/daemon/plan.h"
 #include "rig_daemon/recording/mcap_reader.h"
@@ -30,22 +30,11 @@ using hc::testing::bin_dir;
 using hc::testing::ScratchDir;
 using hc::testing::source_dir;
 
-struct CmdResult {
-  int exit_code = -1;
-  std::string out;
-};
+using CmdResult = hc::testing::CliRun;
 
 // Runs a shell command; stdout (and stderr unless `drop_stderr`) is captured.
 CmdResult run(const std::string& cmd, bool drop_stderr = false) {
-  CmdResult r;
-  FILE* p = ::popen((cmd + (drop_stderr ? " 2>/dev/null" : " 2>&1")).c_str(), "r");
-  if (p == nullptr) return r;
-  std::array<char, 4096> buf{};
-  std::size_t n;
-  while ((n = std::fread(buf.data(), 1, buf.size(), p)) > 0) r.out.append(buf.data(), n);
-  const int status = ::pclose(p);
-  r.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-  return r;
+  return hc::testing::run_command(cmd + (drop_stderr ? " 2>/dev/null" : " 2>&1"));
 }
 
 // Output of a command that prints JSON on stdout (stderr dropped).
