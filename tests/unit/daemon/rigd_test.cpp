@@ -11,7 +11,6 @@
 #include <sstream>
 
 #include <chrono>
-#include <cstdio>
 #include <fstream>
 #include <string>
 #include <thread>
