@@ -1,11 +1,19 @@
 // The "sim" backends: every device kind on the shared simulated world (sim_world.h).
 #include <algorithm>
 #include <cmath>
+#include <condition_variable>
 #include <deque>
 #include <limits>
 #include <memory>
+#include <mutex>
 #include <random>
 #include <string>
+#include <thread>
+#include <vector>
+
+#include <sys/resource.h>
+#include <sys/syscall.h>
+#include <unistd.h>
 
 #include "rig_daemon/devices/pinhole.h"
 #include "rig_daemon/devices/registry.h"
@@ -423,10 +431,233 @@ class SimTrigger final : public Trigger {
 };
 
 // ------------------------------------------------------------------------------------------------
+// What a simulated camera needs to render a frame, fixed while it streams (copied, so the render
+// thread shares nothing with the device or the world).
+struct RenderSetup {
+  sim::PinholeCamera cam;
+  sim::DotStyle style;
+  sim::ProbeLook probe;
+  double marker_radius_m = 0.0;
+  double pixel_noise = 0.0;
+  std::uint64_t noise_seed = 0;  // the device's "/pixels" seed (xor the frame index per frame)
+};
+
+// Pixels of `f` (its header already set) showing `truth`; `layer` is scratch reused between frames.
+void render_frame(const RenderSetup& s, const sim::GroundTruth& truth, sim::ProbeLayer& layer,
+                  Frame& f) {
+  f.pixels.assign(static_cast<std::size_t>(s.cam.width) * s.cam.height, s.style.background);
+  if (truth.board_pose_index) {  // a calibration capture: the board only
+    sim::render_board(s.cam, truth.board_spec, truth.board_pose, f);
+  } else {
+    const sim::ProbeLayer* occluder = nullptr;
+    if (truth.probe_shown) {
+      layer.render(s.cam, truth.probe_geometry, s.probe, static_cast<int>(s.cam.width),
+                   static_cast<int>(s.cam.height));
+      layer.composite(f);
+      occluder = &layer;
+    }
+    sim::render_dots(s.cam, truth.markers_m, s.marker_radius_m, s.style, f, occluder);
+  }
+  if (s.pixel_noise <= 0.0) return;
+  // xorshift64 and a sum of two uniforms (triangular, std sigma): per-pixel normal draws would
+  // cost more than the rendering itself.
+  std::uint64_t x = s.noise_seed ^ f.frame_index;
+  x |= 1;
+  const double scale = s.pixel_noise * std::sqrt(6.0);
+  for (std::uint8_t& p : f.pixels) {
+    x ^= x << 13;
+    x ^= x >> 7;
+    x ^= x << 17;
+    const double a = static_cast<double>(x & 0xFFFF) / 65536.0;
+    const double b = static_cast<double>((x >> 16) & 0xFFFF) / 65536.0;
+    const double v = p + scale * (a + b - 1.0);
+    p = static_cast<std::uint8_t>(std::clamp(std::lround(v), 0L, 255L));
+  }
+}
+
+// One frame handed to the render threads: its header and the scene at mid-exposure.
+struct RenderJob {
+  Frame frame;             // everything but the pixels
+  sim::GroundTruth truth;  // a copy, taken on the reading thread
+  std::int64_t ready_ns;   // exposure end + readout: when the camera would have the frame
+};
+struct RenderedFrame {
+  Frame frame;
+  std::int64_t ready_ns = 0;
+  std::int64_t finished_ns = 0;  // on the device's clock, when the render thread was done
+};
+
+// One simulated camera's frames on their way through the render threads, in submission order,
+// like a real camera's frame buffers filled by the driver's threads: rendering never stalls the
+// thread that reads the devices (rigd's control loop). `buffers` bounds the frames queued, being
+// rendered or rendered but not yet taken; submit() fails when all are in use (a buffer overrun:
+// the caller counts the frame lost). Thread-safe.
+class FrameStream {
+ public:
+  struct Slot {
+    RenderJob job;
+    RenderedFrame done;
+    bool finished = false;  // guarded by the stream's mutex; job/done belong to the renderer
+  };                        // until it is set
+
+  FrameStream(RenderSetup setup, std::size_t buffers, std::shared_ptr<Clock> clock)
+      : setup_(std::move(setup)),
+        buffers_(std::max<std::size_t>(1, buffers)),
+        clock_(std::move(clock)) {}
+
+  // A slot for `job` (moved from only on success), or null when every buffer is in use.
+  std::shared_ptr<Slot> reserve(RenderJob& job) {
+    std::lock_guard lock(mutex_);
+    if (stopping_ || slots_.size() >= buffers_) return nullptr;
+    auto slot = std::make_shared<Slot>();
+    slot->job = std::move(job);
+    slots_.push_back(slot);
+    return slot;
+  }
+  // On a render thread: renders the slot unless the stream was stopped meanwhile.
+  void render(Slot& slot, sim::ProbeLayer& layer) {
+    {
+      std::lock_guard lock(mutex_);
+      if (stopping_) return;
+    }
+    render_frame(setup_, slot.job.truth, layer, slot.job.frame);
+    slot.done = RenderedFrame{std::move(slot.job.frame), slot.job.ready_ns, clock_->now_ns()};
+    slot.job.truth = {};
+    {
+      std::lock_guard lock(mutex_);
+      slot.finished = true;
+    }
+    cv_.notify_all();
+  }
+  // Moves the frames finished in order (oldest first, up to the first unfinished one) to `out`.
+  void take(std::vector<RenderedFrame>& out) {
+    std::lock_guard lock(mutex_);
+    while (!slots_.empty() && slots_.front()->finished) {
+      out.push_back(std::move(slots_.front()->done));
+      slots_.pop_front();
+    }
+  }
+  bool idle() const {
+    std::lock_guard lock(mutex_);
+    return all_finished();
+  }
+  // Blocks until every submitted frame is rendered.
+  void wait_all() {
+    std::unique_lock lock(mutex_);
+    cv_.wait(lock, [&] { return stopping_ || all_finished(); });
+  }
+  // Blocks until the oldest frame is rendered or `d` passed (real time).
+  void wait_any(Duration d) {
+    std::unique_lock lock(mutex_);
+    cv_.wait_for(lock, d,
+                 [&] { return stopping_ || (!slots_.empty() && slots_.front()->finished); });
+  }
+  // Forgets every frame not taken yet (a frame being rendered is finished and thrown away by its
+  // render thread); returns how many there were. Never blocks on a render.
+  std::size_t stop() {
+    std::size_t dropped = 0;
+    {
+      std::lock_guard lock(mutex_);
+      if (stopping_) return 0;
+      stopping_ = true;
+      dropped = slots_.size();
+      slots_.clear();
+    }
+    cv_.notify_all();
+    return dropped;
+  }
+
+ private:
+  bool all_finished() const {
+    return std::all_of(slots_.begin(), slots_.end(), [](const auto& s) { return s->finished; });
+  }
+
+  const RenderSetup setup_;  // immutable: read by the render threads without the lock
+  const std::size_t buffers_;
+  const std::shared_ptr<Clock> clock_;
+  mutable std::mutex mutex_;
+  std::condition_variable cv_;  // a frame finished, or stopping
+  std::deque<std::shared_ptr<Slot>> slots_;
+  bool stopping_ = false;
+};
+
+// The render threads every simulated camera of the process shares: hardware threads - 1 (at least
+// 1, at most 4), at a lower scheduling priority (nice +10) so that on a busy machine rendering
+// yields the CPU to the threads that poll the devices. A job holds its stream and slot, so a camera
+// may stop or go away while its frame renders.
+class RenderPool {
+ public:
+  static std::shared_ptr<RenderPool> shared() {
+    static std::mutex mutex;
+    static std::weak_ptr<RenderPool> pool;
+    std::lock_guard lock(mutex);
+    std::shared_ptr<RenderPool> p = pool.lock();
+    if (!p) {
+      const unsigned hw = std::max(2u, std::thread::hardware_concurrency());
+      p = std::make_shared<RenderPool>(std::min(hw - 1, 4u));
+      pool = p;
+    }
+    return p;
+  }
+
+  explicit RenderPool(unsigned threads) {
+    for (unsigned i = 0; i < threads; ++i) threads_.emplace_back([this] { run(); });
+  }
+  ~RenderPool() {
+    {
+      std::lock_guard lock(mutex_);
+      stopping_ = true;
+    }
+    cv_.notify_all();
+    for (std::thread& t : threads_) t.join();
+  }
+  RenderPool(const RenderPool&) = delete;
+  RenderPool& operator=(const RenderPool&) = delete;
+
+  void push(std::shared_ptr<FrameStream> stream, std::shared_ptr<FrameStream::Slot> slot) {
+    {
+      std::lock_guard lock(mutex_);
+      jobs_.push_back({std::move(stream), std::move(slot)});
+    }
+    cv_.notify_one();
+  }
+
+ private:
+  struct Job {
+    std::shared_ptr<FrameStream> stream;
+    std::shared_ptr<FrameStream::Slot> slot;
+  };
+  void run() {
+    // Linux: setpriority(PRIO_PROCESS, tid) sets one thread's nice value. Failure (a sandbox
+    // forbidding it) only costs the priority.
+    (void)::setpriority(PRIO_PROCESS, static_cast<id_t>(::syscall(SYS_gettid)), 10);
+    sim::ProbeLayer layer;  // scratch, reused between frames
+    std::unique_lock lock(mutex_);
+    while (true) {
+      cv_.wait(lock, [&] { return stopping_ || !jobs_.empty(); });
+      if (stopping_) return;
+      Job job = std::move(jobs_.front());
+      jobs_.pop_front();
+      lock.unlock();
+      job.stream->render(*job.slot, layer);
+      job = {};
+      lock.lock();
+    }
+  }
+
+  std::mutex mutex_;
+  std::condition_variable cv_;
+  std::deque<Job> jobs_;
+  bool stopping_ = false;
+  std::vector<std::thread> threads_;
+};
+
+// ------------------------------------------------------------------------------------------------
 class SimCamera final : public Camera {
  public:
   SimCamera(const DeviceContext& ctx, std::shared_ptr<World> world)
       : Camera(ctx), parts_(ctx, std::move(world)) {}
+  ~SimCamera() override { stop_worker(); }
 
   CameraInfo camera_info() const override {
     CameraInfo info;
@@ -458,6 +689,9 @@ class SimCamera final : public Camera {
     if (!t) return std::nullopt;
     return *t + exposure_ns_ + readout_ns_ + parts_.delay_ns(*t);
   }
+  // The frame due now: its stamps, lost/late accounting and the scene at mid-exposure are settled
+  // here, on the reading thread (cheap); the pixels are rendered here (render_thread: false) or
+  // on the render thread.
   void emit(std::vector<Frame>& out) {
     const std::int64_t t = *exposure_start();
     const std::uint64_t index = k_++;
@@ -468,37 +702,40 @@ class SimCamera final : public Camera {
       count_lost(1);
       return;
     }
-    Frame f;
+    RenderJob job;
+    Frame& f = job.frame;
     f.format = PixelFormat::kMono8;
     f.width = cam_.width;
     f.height = cam_.height;
     f.stride_bytes = cam_.width;
-    f.pixels.assign(static_cast<std::size_t>(cam_.width) * cam_.height, style_.background);
-    // The scene at mid-exposure; ground truth for that instant goes to the separate channel.
-    const std::int64_t t_scene = t + exposure_ns_ / 2;
-    const sim::GroundTruth truth = parts_.world().ground_truth(t_scene, trigger, false);
-    if (truth.board_pose_index) {  // a calibration capture: the board only
-      sim::render_board(cam_, truth.board_spec, truth.board_pose, f);
-    } else {
-      const sim::ProbeLayer* occluder = nullptr;
-      if (truth.probe_shown) {
-        probe_layer_.render(cam_, truth.probe_geometry, parts_.world().options().probe,
-                            static_cast<int>(cam_.width), static_cast<int>(cam_.height));
-        probe_layer_.composite(f);
-        occluder = &probe_layer_;
-      }
-      sim::render_dots(cam_, truth.markers_m, parts_.world().specimen().marker_radius_m(), style_,
-                       f, occluder);
-    }
-    parts_.world().publish_ground_truth(t_scene, trigger);
-    if (pixel_noise_ > 0.0) add_noise(f);
     f.frame_id = (first_frame_id_ + index) & 0xFFFFu;
     f.frame_index = index;
     f.device_stamp_ns = parts_.device_stamp(t);
     const std::int64_t delay = parts_.delay_ns(t);
-    f.host_ns = t + exposure_ns_ + readout_ns_ + delay;
+    job.ready_ns = t + exposure_ns_ + readout_ns_;
+    f.host_ns = job.ready_ns + delay;
     f.trigger_index = trigger;
     f.exposure_s = exposure_s_;
+    // The scene at mid-exposure; ground truth for that instant goes to the separate channel.
+    const std::int64_t t_scene = t + exposure_ns_ / 2;
+    job.truth = parts_.world().ground_truth(t_scene, trigger, false);
+    parts_.world().publish_ground_truth(t_scene, trigger);
+    if (stream_) {
+      std::shared_ptr<FrameStream::Slot> slot = stream_->reserve(job);
+      if (!slot && !parts_.world().clock().is_simulated()) {
+        count_lost(1);  // every frame buffer in use: an overrun
+        return;
+      }
+      if (!slot) {
+        // Rendering takes no simulated time: free the buffers instead (read_rendered() delivers).
+        stream_->wait_all();
+        stream_->take(rendered_);
+        slot = stream_->reserve(job);
+      }
+      if (slot) pool_->push(stream_, std::move(slot));
+      return;
+    }
+    render_frame(setup_, job.truth, probe_layer_, f);
     if (delay > late_ns_) count_late(1);
     out.push_back(std::move(f));
   }
@@ -523,16 +760,28 @@ class SimCamera final : public Camera {
     double readout_s = cam_.height * 20.52e-6 + 3873.2e-6;
     node.optional("readout_s", readout_s, Bounds::non_negative());
     node.optional("first_frame_id", first_frame_id_, Bounds::between(0, 65535));
-    node.optional("background", style_.background);
-    node.optional("dot", style_.dot);
-    node.optional("pixel_noise", pixel_noise_, Bounds::non_negative());
+    sim::DotStyle style;
+    node.optional("background", style.background);
+    node.optional("dot", style.dot);
+    double pixel_noise = 0.0;
+    node.optional("pixel_noise", pixel_noise, Bounds::non_negative());
     double late_s = 0.05;
     node.optional("late_after_s", late_s, Bounds::positive());
     std::string format = "mono8";
     node.optional("format", format, {"mono8"});
+    // Rendering on the camera's own thread (default) or inside read() (the old synchronous path,
+    // kept for comparison); frame buffers of the render thread (queued + rendering + unread).
+    node.optional("render_thread", render_thread_);
+    node.optional("render_buffers", render_buffers_, Bounds::between(1, 1024));
     exposure_ns_ = seconds_to_ns(exposure_s_);
     readout_ns_ = seconds_to_ns(readout_s);
     late_ns_ = seconds_to_ns(late_s);
+    setup_.cam = cam_;
+    setup_.style = style;
+    setup_.probe = parts_.world().options().probe;
+    setup_.marker_radius_m = parts_.world().specimen().marker_radius_m();
+    setup_.pixel_noise = pixel_noise;
+    setup_.noise_seed = parts_.world().device_seed(name() + "/pixels");
     return node.status();
   }
   Status on_activate() override {
@@ -542,13 +791,23 @@ class SimCamera final : public Camera {
     k_ = 0;
     edge_ = parts_.world().pulses_by(now);
     pending_.clear();
+    stop_worker();
+    if (render_thread_) {
+      if (!pool_) pool_ = RenderPool::shared();
+      stream_ = std::make_shared<FrameStream>(setup_, static_cast<std::size_t>(render_buffers_),
+                                              parts_.world().clock_ptr());
+    }
     return {};
   }
   Status on_deactivate() override {
     pending_.clear();
+    stop_worker();
     return {};
   }
-  Status on_reset() override { return parts_.connected(parts_.world().clock().now_ns()); }
+  Status on_reset() override {
+    stop_worker();
+    return parts_.connected(parts_.world().clock().now_ns());
+  }
   Status on_software_trigger() override {
     if (mode_ != TriggerMode::kSoftware)
       return failed_precondition("camera '" + name() + "' is not in software trigger mode");
@@ -558,30 +817,65 @@ class SimCamera final : public Camera {
     return {};
   }
   Result<std::size_t> on_read(std::vector<Frame>& out, Duration timeout) override {
-    return stream_read(*this, parts_, out, timeout);
+    if (!stream_) return stream_read(*this, parts_, out, timeout);
+    return read_rendered(out, timeout);
   }
   void describe(DeviceInfo& info) const override {
     info.model = "simulated camera";
     info.details = {{"size", std::to_string(cam_.width) + "x" + std::to_string(cam_.height)},
-                    {"trigger", std::string(to_string(mode_))}};
+                    {"trigger", std::string(to_string(mode_))},
+                    {"render", render_thread_ ? "thread" : "inline"}};
   }
 
  private:
-  void add_noise(Frame& f) {
-    // xorshift64 and a sum of two uniforms (triangular, std sigma): per-pixel normal draws would
-    // cost more than the rendering itself.
-    std::uint64_t x = parts_.world().device_seed(name() + "/pixels") ^ f.frame_index;
-    x |= 1;
-    const double scale = pixel_noise_ * std::sqrt(6.0);
-    for (std::uint8_t& p : f.pixels) {
-      x ^= x << 13;
-      x ^= x >> 7;
-      x ^= x << 17;
-      const double a = static_cast<double>(x & 0xFFFF) / 65536.0;
-      const double b = static_cast<double>((x >> 16) & 0xFFFF) / 65536.0;
-      const double v = p + scale * (a + b - 1.0);
-      p = static_cast<std::uint8_t>(std::clamp(std::lround(v), 0L, 255L));
+  // stream_read() with the render thread: frames due are handed to it, and read() returns the
+  // frames it has finished. Simulated time: every frame handed over is waited for in the same
+  // read(), so frames arrive exactly when (and as) the inline renderer delivers them and the
+  // session stays deterministic. Real time: read() never waits for pixels beyond its timeout; a
+  // frame finished after its host_ns keeps its stamps and counts late when it comes more than
+  // late_after_s after exposure end + readout, like a real camera's late frame.
+  Result<std::size_t> read_rendered(std::vector<Frame>& out, Duration timeout) {
+    Clock& clock = parts_.world().clock();
+    const bool simulated = clock.is_simulated();
+    const std::int64_t deadline = clock.now_ns() + std::max<std::int64_t>(0, timeout.count());
+    const std::size_t before = out.size();
+    while (true) {
+      const std::int64_t now = clock.now_ns();
+      // Frames finished before a disconnect are still delivered (the error comes next read).
+      const Status connected = parts_.connected(now);
+      std::optional<std::int64_t> due;
+      std::size_t emitted = 0;
+      if (connected.ok())
+        while (emitted < kMaxBatch && (due = next_due()) && *due <= now) {
+          emit(out);
+          ++emitted;
+        }
+      if (simulated) stream_->wait_all();
+      stream_->take(rendered_);  // after the frames emit() may have taken already
+      for (RenderedFrame& r : rendered_) {
+        const std::int64_t arrived =
+            simulated ? r.frame.host_ns : std::max(r.frame.host_ns, r.finished_ns);
+        if (arrived - r.ready_ns > late_ns_) count_late(1);
+        out.push_back(std::move(r.frame));
+      }
+      rendered_.clear();
+      if (out.size() > before) return out.size() - before;
+      if (!connected.ok()) return connected;
+      if (now >= deadline) return std::size_t{0};
+      const std::int64_t wake =
+          due ? std::min(*due, deadline) : std::min(now + 1'000'000, deadline);
+      if (!simulated && !stream_->idle())
+        stream_->wait_any(Duration(std::max<std::int64_t>(wake - now, 1)));
+      else
+        clock.sleep_until_ns(std::max(wake, now + 1));
     }
+  }
+  // Frames handed to the render thread and never delivered are lost (a real camera stopped
+  // mid-acquisition drops its in-flight buffers too).
+  void stop_worker() {
+    if (!stream_) return;
+    if (const std::size_t dropped = stream_->stop(); dropped > 0) count_lost(dropped);
+    stream_.reset();
   }
 
   SimParts parts_;
@@ -593,13 +887,17 @@ class SimCamera final : public Camera {
   std::int64_t readout_ns_ = 0;
   std::int64_t late_ns_ = 50'000'000;
   std::uint32_t first_frame_id_ = 65400;  // like the fake GigE camera: wraps early
-  sim::DotStyle style_;
-  sim::ProbeLayer probe_layer_;  // scratch, reused between frames
-  double pixel_noise_ = 0.0;
+  RenderSetup setup_;
+  sim::ProbeLayer probe_layer_;  // scratch of the inline renderer, reused between frames
+  bool render_thread_ = true;
+  int render_buffers_ = 8;
   std::int64_t t0_ = 0;
   std::uint64_t k_ = 0;
   std::uint64_t edge_ = 0;
   std::deque<std::int64_t> pending_;
+  std::vector<RenderedFrame> rendered_;  // taken from the render thread, not yet delivered
+  std::shared_ptr<RenderPool> pool_;     // the shared render threads (render_thread: true)
+  std::shared_ptr<FrameStream> stream_;  // while active with render_thread
 };
 
 // ------------------------------------------------------------------------------------------------
