@@ -8,6 +8,7 @@
 #include <atomic>
 
 #include <algorithm>
+#include <array>
 #include <chrono>
 #include <cmath>
 #include <map>
@@ -55,6 +56,140 @@ bool get_int(const Json& j, const char* key, T& out) {
   if (!j.contains(key) || !j[key].is_number_integer()) return false;
   out = j[key].get<T>();
   return true;
+}
+
+// Nodes on the boundary of a tet mesh: those of faces that belong to one tet only.
+std::vector<std::uint8_t> boundary_nodes(const TetMesh& mesh) {
+  std::vector<std::array<int, 4>> faces;  // sorted face nodes + tet (for stable sort)
+  faces.reserve(static_cast<std::size_t>(mesh.num_tets()) * 4);
+  for (Eigen::Index t = 0; t < mesh.num_tets(); ++t)
+    for (int skip = 0; skip < 4; ++skip) {
+      std::array<int, 4> f{};
+      int k = 0;
+      for (int i = 0; i < 4; ++i)
+        if (i != skip) f[static_cast<std::size_t>(k++)] = mesh.tets(t, i);
+      std::sort(f.begin(), f.begin() + 3);
+      f[3] = 0;
+      faces.push_back(f);
+    }
+  std::sort(faces.begin(), faces.end());
+  std::vector<std::uint8_t> on(static_cast<std::size_t>(mesh.num_nodes()), 0);
+  for (std::size_t i = 0; i < faces.size();) {
+    std::size_t j = i + 1;
+    while (j < faces.size() && faces[j] == faces[i]) ++j;
+    if (j - i == 1)
+      for (int k = 0; k < 3; ++k)
+        on[static_cast<std::size_t>(faces[i][static_cast<std::size_t>(k)])] = 1;
+    i = j;
+  }
+  return on;
+}
+
+// The probe sphere as a constraint of the occlusion fill (template frame). A smooth fill of the
+// visible markers' displacements misses the dimple the sphere presses: the visible markers around
+// it moved less than the hidden ones under it, and a biharmonic interpolant through a deep point
+// under the tip and shallow ones around it overshoots below the sphere near the contact's edge
+// (a whole 30-step press reached 0.7 mm there). Two rules, applied to the current fill and the
+// fill solved again with the resulting points as constraints (3 passes: the contact set settles):
+//  * any filled point inside the sphere is moved onto it (along the push direction): the
+//    specimen cannot enter the probe;
+//  * a filled surface node within the contact radius a of the probe's axis is put on the sphere
+//    wherever the fill left it: inside the contact patch the surface takes the indenter's shape.
+//    For a sphere of radius R pressed to depth d into an elastic body, a = sqrt(R d) (Hertz
+//    contact: K. L. Johnson, Contact Mechanics, 1985, Sec. 4.2, d = a^2 / R); d is the depth of
+//    the tip below the rest surface there (the rest surface nodes nearest the axis, weighted by
+//    inverse lateral distance).
+std::vector<Eigen::Vector3d> fill_with_probe_contact(
+    const std::vector<Eigen::Vector3d>& known_p, const std::vector<Eigen::Vector3d>& known_d,
+    const std::vector<Eigen::Vector3d>& query, const std::vector<std::uint8_t>& query_on_surface,
+    const std::vector<Eigen::Vector3d>& surface_nodes, const Eigen::Vector3d& tip,
+    const Eigen::Vector3d& down, const SessionTrackOptions& options,
+    std::vector<Eigen::Vector3d> filled) {
+  const double R = options.probe_radius_m;
+  const Eigen::Vector3d centre = tip - R * down;
+  const auto lateral = [&](const Eigen::Vector3d& x) {
+    const Eigen::Vector3d w = x - tip;
+    return Eigen::Vector3d(w - w.dot(down) * down);
+  };
+  // The rest surface along the axis at lateral offset l from the tip: axial position (along
+  // `down`, from the tip) interpolated from the nearest rest surface nodes (inverse lateral
+  // distance weights; nodes farther than 2 R along the axis are the specimen's other side).
+  const auto rest_axial = [&](const Eigen::Vector3d& l, double* out) {
+    std::vector<std::pair<double, double>> near;  // lateral distance, axial position
+    for (const Eigen::Vector3d& p : surface_nodes) {
+      const double s = (p - tip).dot(down);
+      if (std::abs(s) > 2.0 * R) continue;
+      near.emplace_back((lateral(p) - l).norm(), s);
+    }
+    const std::size_t k = std::min<std::size_t>(4, near.size());
+    if (k == 0) return false;
+    std::partial_sort(near.begin(), near.begin() + static_cast<std::ptrdiff_t>(k), near.end());
+    double ws = 0.0, ss = 0.0;
+    for (std::size_t i = 0; i < k; ++i) {
+      const double w = 1.0 / std::max(near[i].first, 1e-6);
+      ws += w;
+      ss += w * near[i].second;
+    }
+    *out = ss / ws;
+    return true;
+  };
+  double s_tip = 0.0;
+  if (!rest_axial(Eigen::Vector3d::Zero(), &s_tip)) return filled;
+  const double depth = -s_tip;  // the tip below the rest surface: > 0
+  const double contact_radius = depth > 0 ? std::sqrt(R * std::min(depth, R)) : 0.0;
+  // The contact patch as constraints of its own: points of the sphere cap at the tip and on rings
+  // of radius a / 2 and a (8 each), with rest positions straight above them on the rest surface
+  // (their lateral displacement, (1 - 2 nu) times smaller, is neglected). Without them the
+  // interpolant between a measured deep point under the tip and the shallow markers around
+  // overshoots below the sphere near the patch's edge. A patch point nearer than a / 4 to a
+  // measured marker is left out (the measurement decides there).
+  std::vector<Eigen::Vector3d> base_p = known_p, base_d = known_d;
+  if (contact_radius > 0) {
+    const Eigen::Vector3d e1 = down.unitOrthogonal(), e2 = down.cross(e1);
+    std::vector<Eigen::Vector3d> lat{Eigen::Vector3d::Zero()};
+    for (double f : {0.5, 1.0})
+      for (int i = 0; i < 8; ++i) {
+        const double t = M_PI * i / 4.0;
+        lat.push_back(f * contact_radius * (std::cos(t) * e1 + std::sin(t) * e2));
+      }
+    for (const Eigen::Vector3d& l : lat) {
+      double s_rest = 0.0;
+      if (!rest_axial(l, &s_rest)) continue;
+      const Eigen::Vector3d rest = tip + l + s_rest * down;
+      const Eigen::Vector3d on = centre + l + std::sqrt(R * R - l.squaredNorm()) * down;
+      bool near_known = false;
+      for (const Eigen::Vector3d& p : known_p)
+        near_known = near_known || (p - rest).norm() < 0.25 * contact_radius;
+      if (near_known) continue;
+      base_p.push_back(rest);
+      base_d.push_back(on - rest);
+    }
+    if (base_p.size() > known_p.size())
+      filled = interpolate_displacements(base_p, base_d, query, options.fill_regularization_m);
+  }
+  for (int pass = 0; pass < 3; ++pass) {
+    std::vector<Eigen::Vector3d> cp = base_p, cd = base_d;
+    std::size_t contacts = 0;
+    for (std::size_t q = 0; q < query.size(); ++q) {
+      const Eigen::Vector3d x = query[q] + filled[q];
+      const Eigen::Vector3d l = lateral(x);
+      const double rho = l.norm();
+      if (rho >= R) continue;
+      // The sphere's lower surface at this lateral position.
+      const Eigen::Vector3d on = centre + l + std::sqrt(R * R - rho * rho) * down;
+      const bool inside = (x - centre).norm() < R;
+      // A surface node under the probe (not the far side of a thin specimen).
+      const bool in_patch =
+          query_on_surface[q] && rho <= contact_radius && std::abs((x - on).dot(down)) < R;
+      if (!inside && !in_patch) continue;
+      cp.push_back(query[q]);
+      cd.push_back(on - query[q]);
+      ++contacts;
+    }
+    if (contacts == 0) break;
+    filled = interpolate_displacements(cp, cd, query, options.fill_regularization_m);
+  }
+  return filled;
 }
 
 struct PendingFrame {
@@ -222,6 +357,18 @@ Result<SessionDetections> read_session_detections(const std::filesystem::path& s
           return invalid_argument(fmt::format("{}: ground truth markers_m malformed", name));
         st.truth_markers_m.emplace_back(m[0].get<double>(), m[1].get<double>(), m[2].get<double>());
       }
+      Eigen::Vector3d v;
+      if (get_vec3(t->second, "probe_tip_m", v)) st.truth_probe_tip_m = v;
+      if (get_vec3(t->second, "probe_axis", v)) st.truth_probe_axis = v;
+      if (t->second.contains("shaft_markers_m") && t->second["shaft_markers_m"].is_array())
+        for (const Json& m : t->second["shaft_markers_m"]) {
+          if (!m.is_array() || m.size() != 3 || !m[0].is_number() || !m[1].is_number() ||
+              !m[2].is_number())
+            return invalid_argument(
+                fmt::format("{}: ground truth shaft_markers_m malformed", name));
+          st.truth_shaft_markers_m.emplace_back(m[0].get<double>(), m[1].get<double>(),
+                                                m[2].get<double>());
+        }
       if (t->second.contains("cameras") && t->second["cameras"].is_object()) {
         st.truth_occluded.resize(nc);
         for (std::size_t c = 0; c < nc; ++c) {
@@ -468,8 +615,10 @@ Result<TrackedSession> track_detections(const SessionDetections& in,
   std::vector<int> fixed;
   for (Eigen::Index i = 0; i < mesh.num_nodes(); ++i)
     if (mesh.nodes(i, 2) <= zmin + options.fixed_tolerance_m) fixed.push_back(static_cast<int>(i));
-  std::vector<std::uint8_t> is_marker_node(nodes.size(), 0);
-  for (int n : out.marker_node) is_marker_node[static_cast<std::size_t>(n)] = 1;
+  const std::vector<std::uint8_t> on_surface = boundary_nodes(mesh);
+  std::vector<Eigen::Vector3d> surface_nodes;  // rest positions, for the probe's indentation
+  for (std::size_t n = 0; n < nodes.size(); ++n)
+    if (on_surface[n]) surface_nodes.push_back(nodes[n]);
 
   out.samples.mesh = mesh;
   const Eigen::Matrix3d R_tpl_world = reg->T.linear();
@@ -517,10 +666,12 @@ Result<TrackedSession> track_detections(const SessionDetections& in,
     }
     std::vector<Eigen::Vector3d> query;
     std::vector<std::size_t> query_node;
+    std::vector<std::uint8_t> query_on_surface;
     for (std::size_t n = 0; n < nodes.size(); ++n)
       if (!ex.visible[n]) {
         query.push_back(nodes[n]);
         query_node.push_back(n);
+        query_on_surface.push_back(on_surface[n]);
       }
     // The RBF system is dense (cubic in its centres): keep the measured markers nearest to where
     // the fill matters — the unmeasured marker nodes and the probe — (options.max_fill_centres),
@@ -552,36 +703,11 @@ Result<TrackedSession> track_detections(const SessionDetections& in,
     }
     std::vector<Eigen::Vector3d> filled =
         interpolate_displacements(known_p, known_d, query, options.fill_regularization_m);
-    // The probe is a constraint too: a smooth fill under-estimates the dimple the sphere presses
-    // (the visible markers around it moved less than the hidden ones under it), so filled points
-    // inside the probe sphere are moved onto it along the push direction and the fill is solved
-    // again with them as constraints (twice: the contact patch grows as the surface drops).
-    if (st.probe_tip_m && options.probe_constraint) {
-      const Eigen::Vector3d down = R_tpl_world * Eigen::Vector3d(0, 0, -1);
-      const Eigen::Vector3d centre = reg->T * *st.probe_tip_m - options.probe_radius_m * down;
-      for (int pass = 0; pass < 2; ++pass) {
-        std::vector<Eigen::Vector3d> cp = known_p, cd = known_d;
-        std::size_t contacts = 0;
-        for (std::size_t q = 0; q < query.size(); ++q) {
-          const Eigen::Vector3d x = query[q] + filled[q];
-          // Intersect the line x + s * down with the sphere; take the exit point below.
-          const Eigen::Vector3d w = x - centre;
-          const double b = w.dot(down);
-          const double disc =
-              b * b - (w.squaredNorm() - options.probe_radius_m * options.probe_radius_m);
-          if (disc <= 0) continue;
-          const double s_exit = -b + std::sqrt(disc);
-          if (s_exit <= 0) continue;  // not inside (or above the sphere's lower half)
-          const Eigen::Vector3d on = x + s_exit * down;
-          if ((on - centre).dot(down) < 0) continue;  // upper half: not a contact
-          cp.push_back(query[q]);
-          cd.push_back(on - query[q]);
-          ++contacts;
-        }
-        if (contacts == 0) break;
-        filled = interpolate_displacements(cp, cd, query, options.fill_regularization_m);
-      }
-    }
+    // The probe is a constraint too (see fill_with_probe_contact).
+    if (st.probe_tip_m && options.probe_constraint)
+      filled = fill_with_probe_contact(
+          known_p, known_d, query, query_on_surface, surface_nodes, reg->T * *st.probe_tip_m,
+          R_tpl_world * Eigen::Vector3d(0, 0, -1), options, std::move(filled));
     for (std::size_t q = 0; q < query.size(); ++q)
       ex.positions_m.row(static_cast<Eigen::Index>(query_node[q])) =
           (query[q] + filled[q]).transpose();

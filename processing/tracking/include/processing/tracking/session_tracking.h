@@ -59,6 +59,10 @@ struct SessionStep {
   std::vector<Eigen::Vector3d> truth_markers_m;  // /sim/ground_truth markers_m (world); empty: none
   // /sim/ground_truth cameras.NAME.occluded, in calibration camera order (empty when absent).
   std::vector<std::vector<std::uint32_t>> truth_occluded;
+  // /sim/ground_truth probe_tip_m, probe_axis and shaft_markers_m (world), when present.
+  std::optional<Eigen::Vector3d> truth_probe_tip_m;
+  std::optional<Eigen::Vector3d> truth_probe_axis;
+  std::vector<Eigen::Vector3d> truth_shaft_markers_m;
 };
 
 // Wall-clock seconds per stage, except detection_s: frames are detected on worker threads while
