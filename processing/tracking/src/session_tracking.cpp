@@ -14,6 +14,7 @@
 #include <map>
 #include <set>
 
+#include "common/config.h"
 #include "common/json.h"
 #include "rig_daemon/recording/foxglove_image.h"
 #include "rig_daemon/recording/mcap_reader.h"
@@ -192,6 +193,44 @@ std::vector<Eigen::Vector3d> fill_with_probe_contact(
   return filled;
 }
 
+// The probe's shaft-marker distances from a rig config (SessionDetections says which). Read
+// leniently: a rig config the daemon accepted is not re-validated here; anything unreadable just
+// leaves the geometry unknown.
+std::optional<std::array<double, 2>> shaft_distances_of_rig(const std::string& yaml) {
+  // The simulator's default probe (rig_daemon/devices sim_scene.h ProbeLook::marker_distances_m,
+  // a library the offline tools do not link): keep in step with it.
+  constexpr std::array<double, 2> kSimDefault{0.06, 0.11};
+  Result<Config> cfg = parse_config(yaml, "rig_config");
+  if (!cfg.ok()) return std::nullopt;
+  std::optional<std::array<double, 2>> out;
+  bool simulated = false;
+  const Status st = read_config(*cfg, [&](ConfigNode root) -> Status {
+    root.allow_unknown_keys();
+    if (std::optional<ConfigNode> devs = root.find("devices"))
+      if (auto entries = devs->entries())
+        for (auto& [name, node] : *entries) {
+          node.allow_unknown_keys();
+          std::string backend;
+          node.optional("backend", backend);
+          simulated = simulated || backend == "sim";
+        }
+    if (std::optional<ConfigNode> world = root.find("world")) {
+      simulated = true;
+      world->allow_unknown_keys();
+      if (std::optional<ConfigNode> probe = world->find("probe")) {
+        probe->allow_unknown_keys();
+        std::array<double, 2> d{};
+        if (probe->optional("marker_distances_m", d)) out = d;
+      }
+    }
+    return {};
+  });
+  if (!st.ok()) return std::nullopt;
+  if (!out && simulated) out = kSimDefault;
+  if (out && !((*out)[0] > 0 && (*out)[1] > (*out)[0])) return std::nullopt;
+  return out;
+}
+
 struct PendingFrame {
   std::size_t step = 0;
   std::size_t camera = 0;
@@ -205,6 +244,8 @@ Result<SessionDetections> read_session_detections(const std::filesystem::path& s
                                                   const SessionReadOptions& options) {
   const auto t_start = Clock::now();
   HC_RETURN_IF_ERROR(options.blobs.validate());
+  if (!(options.shaft_marker_area_ratio > 1.0) || !(options.shaft_marker_max_area_px >= 0.0))
+    return invalid_argument("shaft_marker_area_ratio must be > 1, shaft_marker_max_area_px >= 0");
   Result<recording::McapReader> opened = recording::McapReader::open(session);
   if (!opened.ok()) return invalid_argument(opened.status().to_string());
   const recording::McapReader& reader = *opened;
@@ -244,6 +285,11 @@ Result<SessionDetections> read_session_detections(const std::filesystem::path& s
   Result<std::vector<recording::Metadata>> metadata = reader.read_metadata();
   if (!metadata.ok()) return invalid_argument(metadata.status().to_string());
   for (const recording::Metadata& m : *metadata) {
+    if (m.name == recording::kMetadataRigConfig) {
+      auto it = m.metadata.find("yaml");
+      if (it != m.metadata.end()) out.shaft_marker_distances_m = shaft_distances_of_rig(it->second);
+      continue;
+    }
     if (m.name != recording::kMetadataCalibration) continue;
     auto it = m.metadata.find("json");
     if (it == m.metadata.end()) continue;
@@ -347,6 +393,7 @@ Result<SessionDetections> read_session_detections(const std::filesystem::path& s
     st.ft_force_n = s->second.force;
     st.has_force = s->second.has_force;
     st.detections.assign(nc, {});
+    st.shaft_detections.assign(nc, {});
     st.frames_found.assign(nc, 0);
     step_of_trigger[st.trigger_index] = k;
     auto t = truth.find(st.trigger_index);
@@ -398,6 +445,9 @@ Result<SessionDetections> read_session_detections(const std::filesystem::path& s
                   static_cast<std::size_t>(options.threads));
   // Decoding (this thread) overlaps detection (TBB workers): while one batch of frames is being
   // detected, the next is decoded. detection_s sums the per-frame detection times (CPU-seconds).
+  // Detected up to the shaft markers' size, then split by area (see SessionReadOptions).
+  markers::BlobOptions blobs = options.blobs;
+  blobs.max_area_px = std::max(blobs.max_area_px, options.shaft_marker_max_area_px);
   std::vector<PendingFrame> batch, running;
   std::vector<Result<std::vector<markers::Dot>>> running_results;
   constexpr std::size_t kBatch = 6;
@@ -414,8 +464,20 @@ Result<SessionDetections> read_session_detections(const std::filesystem::path& s
         detect_error = running_results[i].status();
         continue;
       }
-      auto& dets = steps[running[i].step].detections[running[i].camera];
-      for (const markers::Dot& d : *running_results[i]) dets.push_back(d.center_px);
+      SessionStep& st = steps[running[i].step];
+      auto& dets = st.detections[running[i].camera];
+      auto& shaft = st.shaft_detections[running[i].camera];
+      const std::vector<markers::Dot>& dots = *running_results[i];
+      double big = options.blobs.max_area_px;
+      if (dots.size() >= 10) {
+        std::vector<double> areas;
+        for (const markers::Dot& d : dots) areas.push_back(d.area_px);
+        std::nth_element(areas.begin(),
+                         areas.begin() + static_cast<std::ptrdiff_t>(areas.size() / 2),
+                         areas.end());
+        big = std::min(big, options.shaft_marker_area_ratio * areas[areas.size() / 2]);
+      }
+      for (const markers::Dot& d : dots) (d.area_px > big ? shaft : dets).push_back(d.center_px);
     }
     running.clear();
     running_results.clear();
@@ -434,7 +496,7 @@ Result<SessionDetections> read_session_detections(const std::filesystem::path& s
             static_cast<std::ptrdiff_t>(im.step),
             im.encoding == "rgb8" ? markers::PixelFormat::kRgb8 : markers::PixelFormat::kMono8,
             im.data.data()};
-        running_results[i] = markers::detect_blobs(v, options.blobs);
+        running_results[i] = markers::detect_blobs(v, blobs);
         detect_ns +=
             std::chrono::duration_cast<std::chrono::nanoseconds>(Clock::now() - t0).count();
       });
@@ -489,6 +551,45 @@ Result<SessionDetections> read_session_detections(const std::filesystem::path& s
   out.steps = std::move(steps);
   out.times.total_s = seconds_since(t_start);
   return out;
+}
+
+std::optional<ProbePose> probe_pose_from_shaft_markers(
+    const std::vector<calib::CameraModel>& cameras, const FrameDetections& shaft_detections,
+    const Eigen::Isometry3d& world_from_rig, const std::array<double, 2>& distances_m,
+    const std::vector<Eigen::Vector3d>& specimen_world, const ProbePoseOptions& options) {
+  if (shaft_detections.size() != cameras.size()) return std::nullopt;
+  std::size_t seen = 0;
+  for (const auto& d : shaft_detections) seen += d.empty() ? 0 : 1;
+  if (seen < 2) return std::nullopt;
+  Result<std::vector<MatchedPoint>> pts = match_views(cameras, shaft_detections, options.match);
+  if (!pts.ok() || pts->size() < 2) return std::nullopt;
+  const double spacing = distances_m[1] - distances_m[0];
+  double best = options.distance_tolerance_m;
+  std::optional<std::pair<Eigen::Vector3d, Eigen::Vector3d>> pair;
+  for (std::size_t i = 0; i < pts->size(); ++i)
+    for (std::size_t j = i + 1; j < pts->size(); ++j) {
+      const Eigen::Vector3d a = world_from_rig * (*pts)[i].point_m;
+      const Eigen::Vector3d b = world_from_rig * (*pts)[j].point_m;
+      const double e = std::abs((a - b).norm() - spacing);
+      if (e <= best) {
+        best = e;
+        pair = std::make_pair(a, b);
+      }
+    }
+  if (!pair) return std::nullopt;
+  // Marker 0 is the one nearer the specimen (the tip end of the shaft).
+  const auto nearest = [&](const Eigen::Vector3d& x) {
+    double d = std::numeric_limits<double>::infinity();
+    for (const Eigen::Vector3d& p : specimen_world) d = std::min(d, (p - x).squaredNorm());
+    return d;
+  };
+  if (nearest(pair->second) < nearest(pair->first)) std::swap(pair->first, pair->second);
+  ProbePose pose;
+  pose.from_markers = true;
+  pose.markers_m = {pair->first, pair->second};
+  pose.axis = (pair->second - pair->first).normalized();
+  pose.tip_m = pair->first - distances_m[0] * pose.axis;
+  return pose;
 }
 
 Result<TrackedSession> track_detections(const SessionDetections& in,
@@ -639,14 +740,55 @@ Result<TrackedSession> track_detections(const SessionDetections& in,
       }
     }
   }
-  double t_ss = 0, t_max = 0, f_ss = 0, f_max = 0;
-  std::size_t t_n = 0, f_n = 0, t_visible = 0, t_measured = 0;
+  double t_ss = 0, t_max = 0, f_ss = 0, f_max = 0, p_ss = 0;
+  std::size_t t_n = 0, f_n = 0, t_visible = 0, t_measured = 0, p_n = 0;
+  const std::optional<std::array<double, 2>> shaft_distances =
+      options.probe.shaft_marker_distances_m ? options.probe.shaft_marker_distances_m
+                                             : in.shaft_marker_distances_m;
 
   for (std::size_t k = 0; k < in.steps.size(); ++k) {
     const SessionStep& st = in.steps[k];
     const StepResult& r = results[k];
     all_dets += r.detections;
     matched_dets += r.matched_detections;
+    // The probe's pose: from the shaft markers, else the arm's reported pose (world frame).
+    std::optional<ProbePose> probe;
+    if (options.probe_from_shaft_markers && shaft_distances) {
+      std::vector<Eigen::Vector3d> specimen;
+      for (std::size_t m : kept)
+        if (r.measured[m]) specimen.push_back(calibration.world_from_rig * r.points_m[m]);
+      probe =
+          probe_pose_from_shaft_markers(in.cameras, st.shaft_detections, calibration.world_from_rig,
+                                        *shaft_distances, specimen, options.probe);
+    }
+    if (probe) {
+      ++sum.probe_from_markers;
+      if (st.truth_probe_tip_m) {
+        const double e = (probe->tip_m - *st.truth_probe_tip_m).norm();
+        p_ss += e * e;
+        ++p_n;
+        sum.probe_truth_max_error_m = std::max(sum.probe_truth_max_error_m, e);
+        if (st.truth_probe_axis && st.truth_probe_axis->norm() > 0)
+          sum.probe_axis_truth_max_error_rad = std::max(
+              sum.probe_axis_truth_max_error_rad,
+              std::acos(std::clamp(probe->axis.dot(st.truth_probe_axis->normalized()), -1.0, 1.0)));
+      }
+    } else if (st.probe_tip_m) {
+      ++sum.probe_fallbacks;
+      probe = ProbePose{};
+      probe->tip_m = *st.probe_tip_m;  // a 4-DOF arm holds the probe vertical: axis +z
+    } else {
+      ++sum.probe_missing;
+    }
+    out.probe.push_back(probe);
+    // In the template frame.
+    std::optional<Eigen::Vector3d> tip_tpl;
+    Eigen::Vector3d down = R_tpl_world * Eigen::Vector3d(0, 0, -1);
+    if (probe) {
+      tip_tpl = reg->T * probe->tip_m;
+      down = -(R_tpl_world * probe->axis);
+    }
+
     material::Example ex;
     ex.name = st.location >= 0 ? fmt::format("loc{}_lvl{}_step{}", st.location, st.level, st.step)
                                : fmt::format("trigger{}", st.trigger_index);
@@ -681,7 +823,7 @@ Result<TrackedSession> track_detections(const SessionDetections& in,
       for (std::size_t i = 0; i < kept.size(); ++i)
         if (!r.measured[kept[i]])
           focus.push_back(nodes[static_cast<std::size_t>(out.marker_node[i])]);
-      if (st.probe_tip_m) focus.push_back(reg->T * *st.probe_tip_m);
+      if (tip_tpl) focus.push_back(*tip_tpl);
       if (!focus.empty()) {
         std::vector<std::pair<double, std::size_t>> order;
         for (std::size_t i = 0; i < known_p.size(); ++i) {
@@ -704,10 +846,9 @@ Result<TrackedSession> track_detections(const SessionDetections& in,
     std::vector<Eigen::Vector3d> filled =
         interpolate_displacements(known_p, known_d, query, options.fill_regularization_m);
     // The probe is a constraint too (see fill_with_probe_contact).
-    if (st.probe_tip_m && options.probe_constraint)
-      filled = fill_with_probe_contact(
-          known_p, known_d, query, query_on_surface, surface_nodes, reg->T * *st.probe_tip_m,
-          R_tpl_world * Eigen::Vector3d(0, 0, -1), options, std::move(filled));
+    if (tip_tpl && options.probe_constraint)
+      filled = fill_with_probe_contact(known_p, known_d, query, query_on_surface, surface_nodes,
+                                       *tip_tpl, down, options, std::move(filled));
     for (std::size_t q = 0; q < query.size(); ++q)
       ex.positions_m.row(static_cast<Eigen::Index>(query_node[q])) =
           (query[q] + filled[q]).transpose();
@@ -716,9 +857,8 @@ Result<TrackedSession> track_detections(const SessionDetections& in,
     ex.fixed_nodes = fixed;
 
     // Probe and forces.
-    if (st.probe_tip_m) {
-      const Eigen::Vector3d tip = reg->T * *st.probe_tip_m;
-      const Eigen::Vector3d down = R_tpl_world * Eigen::Vector3d(0, 0, -1);
+    if (tip_tpl) {
+      const Eigen::Vector3d tip = *tip_tpl;
       ex.probe.shape = "sphere";
       ex.probe.radius_m = options.probe_radius_m;
       ex.probe.position_m = tip - options.probe_radius_m * down;
@@ -728,7 +868,7 @@ Result<TrackedSession> track_detections(const SessionDetections& in,
       const Eigen::Vector3d f = -(R_tpl_world * st.ft_force_n);  // on the specimen
       std::vector<std::pair<int, double>> w;
       double wsum = 0;
-      if (st.probe_tip_m) {
+      if (tip_tpl) {
         const Eigen::Vector3d c = ex.probe.position_m;
         for (std::size_t n = 0; n < nodes.size(); ++n) {
           if (std::find(fixed.begin(), fixed.end(), static_cast<int>(n)) != fixed.end()) continue;
@@ -743,7 +883,7 @@ Result<TrackedSession> track_detections(const SessionDetections& in,
         if (w.empty()) {
           double best = std::numeric_limits<double>::infinity();
           int bn = -1;
-          const Eigen::Vector3d tip = reg->T * *st.probe_tip_m;
+          const Eigen::Vector3d tip = *tip_tpl;
           for (std::size_t n = 0; n < nodes.size(); ++n) {
             const double d =
                 (ex.positions_m.row(static_cast<Eigen::Index>(n)).transpose() - tip).norm();
@@ -837,6 +977,19 @@ Result<TrackedSession> track_detections(const SessionDetections& in,
     for (const StepResult& r : results)
       for (std::size_t m : kept) sum.filled += r.measured[m] ? 0 : 1;
   }
+  sum.has_probe_truth = p_n > 0;
+  sum.probe_truth_rms_error_m = p_n ? std::sqrt(p_ss / static_cast<double>(p_n)) : 0.0;
+  if (!options.probe_from_shaft_markers)
+    sum.probe_source = "arm pose (shaft markers not used)";
+  else if (!shaft_distances)
+    sum.probe_source = "arm pose (no shaft-marker geometry: give the marker distances)";
+  else if (sum.probe_fallbacks == 0 && sum.probe_missing == 0)
+    sum.probe_source = "shaft markers in every step";
+  else
+    sum.probe_source = fmt::format(
+        "shaft markers in {} of {} steps; arm pose in {} (fewer than two shaft markers seen){}",
+        sum.probe_from_markers, in.steps.size(), sum.probe_fallbacks,
+        sum.probe_missing ? fmt::format("; no probe pose in {}", sum.probe_missing) : "");
   sum.times.total_s = in.times.total_s + sum.times.matching_s + sum.times.registration_s;
   HC_RETURN_IF_ERROR(material::validate_samples(out.samples));
   return out;

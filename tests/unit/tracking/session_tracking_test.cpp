@@ -90,6 +90,46 @@ TEST_F(SimulatedPress, MarkersWithinATenthOfAMillimetreOfTheTruth) {
                s.markers, s.truth_rms_error_m, s.truth_max_error_m, s.matched_fraction,
                s.truth_matched_fraction, s.reprojection_rms_px, s.filled,
                s.filled_truth_rms_error_m, s.filled_truth_max_error_m);
+  std::fprintf(stderr,
+               "probe: %s; from markers %zu, fallbacks %zu; tip vs truth rms %.2e m max %.2e m, "
+               "axis max %.2e rad\n",
+               s.probe_source.c_str(), s.probe_from_markers, s.probe_fallbacks,
+               s.probe_truth_rms_error_m, s.probe_truth_max_error_m,
+               s.probe_axis_truth_max_error_rad);
+  // The probe from its shaft markers (15 / 35 mm above the tip, the rig config's world.probe,
+  // read from the session's metadata) in every step. The tip is extrapolated 15 mm below marker
+  // 0 along the axis from two points 20 mm apart, so the markers' ~0.01-0.03 mm triangulation
+  // error grows by ~(1 + 2 x 0.75): bars 0.1 mm RMS (the issue's marker bar) and 0.25 mm max,
+  // the axis within 10 mrad.
+  ASSERT_TRUE(det->shaft_marker_distances_m.has_value());
+  EXPECT_EQ((*det->shaft_marker_distances_m)[0], 0.015);
+  EXPECT_EQ((*det->shaft_marker_distances_m)[1], 0.035);
+  EXPECT_EQ(s.probe_from_markers, 30u);
+  EXPECT_EQ(s.probe_fallbacks, 0u);
+  EXPECT_EQ(s.probe_source, "shaft markers in every step");
+  ASSERT_TRUE(s.has_probe_truth);
+  EXPECT_LE(s.probe_truth_rms_error_m, 1e-4);
+  EXPECT_LE(s.probe_truth_max_error_m, 2.5e-4);
+  EXPECT_LE(s.probe_axis_truth_max_error_rad, 0.01);
+  ASSERT_EQ(tr->probe.size(), 30u);
+  for (std::size_t k = 0; k < 30; ++k) {
+    ASSERT_TRUE(tr->probe[k].has_value());
+    ASSERT_TRUE(det->steps[k].truth_shaft_markers_m.size() == 2);
+    EXPECT_TRUE(tr->probe[k]->from_markers);
+    for (int i = 0; i < 2; ++i)  // marker 0 is the one nearer the tip
+      EXPECT_LT((tr->probe[k]->markers_m[static_cast<std::size_t>(i)] -
+                 det->steps[k].truth_shaft_markers_m[static_cast<std::size_t>(i)])
+                    .norm(),
+                1e-4)
+          << "step " << k << " marker " << i;
+    // The samples' probe sphere is centred R above the measured tip, pushing along -axis.
+    const material::Example& ex = tr->samples.examples[k];
+    EXPECT_LT((ex.probe.position_m -
+               (*det->steps[k].truth_probe_tip_m + 0.005 * Eigen::Vector3d::UnitZ()))
+                  .norm(),
+              2.5e-4);
+    EXPECT_LT(ex.probe.direction.z(), -0.9999);
+  }
   EXPECT_EQ(s.steps, 30u);
   EXPECT_LE(s.truth_rms_error_m, 1e-4);  // issue 5 bar
   EXPECT_LE(s.truth_max_error_m, 3e-4);
@@ -121,11 +161,8 @@ TEST_F(SimulatedPress, MarkersWithinATenthOfAMillimetreOfTheTruth) {
 // 0.5 mm of the truth.
 TEST_F(SimulatedPress, OccludedMarkersAreFilledWithinHalfAMillimetre) {
   ASSERT_FALSE(session_->empty());
-  SessionReadOptions ro;
-  ro.max_steps = 6;
-  Result<SessionDetections> det = read_session_detections(*session_, *calibration_, ro);
-  ASSERT_TRUE(det.ok()) << det.status().to_string();
-  ASSERT_EQ(det->steps.size(), 6u);
+  std::optional<SessionDetections> det = detections();  // a copy, cut to 6 steps
+  det->steps.resize(6);
   std::size_t erased = 0;
   for (std::size_t k = 1; k < det->steps.size(); ++k) {
     SessionStep& st = det->steps[k];
@@ -212,6 +249,46 @@ TEST_F(SimulatedPress, ProbeHiddenMarkersAreFilledWithinHalfAMillimetreOverTheWh
   EXPECT_GT(tr->summary.filled, 30u);
   EXPECT_LE(tr->summary.filled_truth_max_error_m, 0.5e-3);
   EXPECT_LE(tr->summary.filled_truth_rms_error_m, 0.25e-3);
+}
+
+// Steps where fewer than two shaft markers are seen fall back to the arm's reported pose, and the
+// summary says so; without shaft geometry (or with the option off) every step uses the arm.
+TEST_F(SimulatedPress, ProbePoseFallsBackToTheArmPose) {
+  ASSERT_FALSE(session_->empty());
+  SessionDetections det = detections();
+  det.steps.resize(6);
+  for (std::size_t k : {2u, 3u})
+    for (std::size_t c = 1; c < det.cameras.size(); ++c) det.steps[k].shaft_detections[c].clear();
+  Result<TrackedSession> tr = track_detections(det, *calibration_, testing::block_template());
+  ASSERT_TRUE(tr.ok()) << tr.status().to_string();
+  EXPECT_EQ(tr->summary.probe_from_markers, 4u);
+  EXPECT_EQ(tr->summary.probe_fallbacks, 2u);
+  EXPECT_EQ(tr->summary.probe_source,
+            "shaft markers in 4 of 6 steps; arm pose in 2 (fewer than two shaft markers seen)");
+  for (std::size_t k = 0; k < 6; ++k) {
+    ASSERT_TRUE(tr->probe[k].has_value());
+    const bool fallback = k == 2 || k == 3;
+    EXPECT_EQ(tr->probe[k]->from_markers, !fallback);
+    if (fallback) {
+      EXPECT_EQ(tr->probe[k]->tip_m, *det.steps[k].probe_tip_m);
+      EXPECT_EQ(tr->probe[k]->axis, Eigen::Vector3d::UnitZ());
+    }
+  }
+  // The simulated arm reports the true tip: the fallback steps' samples agree with the others.
+  EXPECT_LT((*det.steps[2].probe_tip_m - *det.steps[2].truth_probe_tip_m).norm(), 1e-9);
+
+  SessionTrackOptions off;
+  off.probe_from_shaft_markers = false;
+  tr = track_detections(det, *calibration_, testing::block_template(), off);
+  ASSERT_TRUE(tr.ok()) << tr.status().to_string();
+  EXPECT_EQ(tr->summary.probe_fallbacks, 6u);
+  EXPECT_EQ(tr->summary.probe_source, "arm pose (shaft markers not used)");
+  det.shaft_marker_distances_m.reset();
+  tr = track_detections(det, *calibration_, testing::block_template());
+  ASSERT_TRUE(tr.ok()) << tr.status().to_string();
+  EXPECT_EQ(tr->summary.probe_fallbacks, 6u);
+  EXPECT_NE(tr->summary.probe_source.find("no shaft-marker geometry"), std::string::npos);
+  EXPECT_FALSE(tr->summary.has_probe_truth);
 }
 
 TEST_F(SimulatedPress, MismatchedCalibrationIsAClearError) {
@@ -306,6 +383,57 @@ TEST_F(SimulatedPress, CliWritesSamplesAndPrintsTheJsonContract) {
   EXPECT_EQ(r.exit_code, 2);
   EXPECT_NE(r.out.find("no camera channel"), std::string::npos) << r.out;
   EXPECT_FALSE(std::filesystem::exists(bad_out));
+}
+
+// The pose from two shaft markers projected exactly into the rig's cameras: tip = m0 - d0 axis to
+// round-off; the marker nearer the specimen is marker 0 whatever order the views list them in; a
+// pair that does not fit the shaft's spacing, or markers in one camera only, give no pose.
+TEST(ProbePose, FromTwoProjectedShaftMarkers) {
+  Result<calib::RigCalibration> cal = testing::true_calibration(testing::hires_rig_yaml());
+  ASSERT_TRUE(cal.ok()) << cal.status().to_string();
+  const std::vector<calib::CameraModel>& cams = cal->cameras;
+  const Eigen::Vector3d tip(0.002, -0.001, 0.049);
+  const Eigen::Vector3d axis = Eigen::Vector3d(0.05, 0.02, 1.0).normalized();
+  const std::array<double, 2> d{0.015, 0.035};
+  const auto project = [&](const std::vector<Eigen::Vector3d>& pts) {
+    FrameDetections f(cams.size());
+    for (std::size_t c = 0; c < cams.size(); ++c)
+      for (const Eigen::Vector3d& p : pts) {
+        const auto px = cams[c].project(p);
+        if (px) f[c].push_back(*px);
+      }
+    return f;
+  };
+  const Eigen::Vector3d m0 = tip + d[0] * axis, m1 = tip + d[1] * axis;
+  const std::vector<Eigen::Vector3d> specimen{Eigen::Vector3d(0, 0, 0.05),
+                                              Eigen::Vector3d(0.003, 0, 0.05)};
+  std::optional<ProbePose> p = probe_pose_from_shaft_markers(
+      cams, project({m1, m0}), Eigen::Isometry3d::Identity(), d, specimen);
+  ASSERT_TRUE(p.has_value());
+  EXPECT_TRUE(p->from_markers);
+  EXPECT_LT((p->tip_m - tip).norm(), 1e-9);
+  EXPECT_LT((p->axis - axis).norm(), 1e-9);
+  EXPECT_LT((p->markers_m[0] - m0).norm(), 1e-9);
+  // A rig frame that is not the world frame: the pose comes out in the world frame.
+  const Eigen::Isometry3d world_from_rig =
+      Eigen::Translation3d(0.1, 0.0, -0.2) * Eigen::AngleAxisd(0.3, Eigen::Vector3d::UnitZ());
+  std::vector<Eigen::Vector3d> specimen_world;
+  for (const auto& q : specimen) specimen_world.push_back(world_from_rig * q);
+  p = probe_pose_from_shaft_markers(cams, project({m0, m1}), world_from_rig, d, specimen_world);
+  ASSERT_TRUE(p.has_value());
+  EXPECT_LT((p->tip_m - world_from_rig * tip).norm(), 1e-9);
+  // Spacing 20 mm; a shaft said to have 30 mm between its markers does not fit.
+  EXPECT_FALSE(probe_pose_from_shaft_markers(cams, project({m0, m1}), Eigen::Isometry3d::Identity(),
+                                             {0.015, 0.045}, specimen)
+                   .has_value());
+  // One marker only, or both in one camera only.
+  EXPECT_FALSE(
+      probe_pose_from_shaft_markers(cams, project({m0}), Eigen::Isometry3d::Identity(), d, specimen)
+          .has_value());
+  FrameDetections one = project({m0, m1});
+  for (std::size_t c = 1; c < one.size(); ++c) one[c].clear();
+  EXPECT_FALSE(probe_pose_from_shaft_markers(cams, one, Eigen::Isometry3d::Identity(), d, specimen)
+                   .has_value());
 }
 
 }  // namespace

@@ -19,7 +19,7 @@
 
 namespace hc::tracking::testing {
 
-// Seven cameras on a half circle of radius 0.3 m, 0.3 m above the specimen's top (z = 0.05), as
+// Seven cameras on a half circle of radius 0.3 m, 0.25 m above the specimen's top (z = 0.05), as
 // rig_sim.yaml but 1600 x 1200 with f = 7000 px (the 60 mm block spans ~1100 px; a 3 mm grid step
 // is ~55 px and a 0.6 mm dot ~11 px in radius), mild distortion and 2 grey levels of pixel noise.
 inline std::string hires_rig_yaml(const std::string& extra_camera_keys = "") {
@@ -39,7 +39,10 @@ inline std::string hires_rig_yaml(const std::string& extra_camera_keys = "") {
          "  arm: {kind: arm, backend: sim}\n"
          "workspace: {min_m: [-0.1, -0.1, 0.0], max_m: [0.1, 0.1, 0.2]}\n"
          "max_force_n: 50\ncontrol_period_s: 0.001\nstall_timeout_s: 0.05\n"
-         "compression: zstd\nseed: 3\n";
+         "compression: zstd\nseed: 3\n"
+         // The probe's shaft markers 15 and 35 mm above the tip: both inside every camera's view
+         // (the simulator's default 60 / 110 mm are above these narrow views).
+         "world: {probe: {marker_distances_m: [0.015, 0.035]}}\n";
 }
 
 // A press of `steps` steps (plans allow 30-200, thesis 5.6) up to `force_n` at (x, y) = `at`.

@@ -28,7 +28,9 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <Eigen/Geometry>
 
+#include <array>
 #include <cstdint>
 #include <filesystem>
 #include <functional>
@@ -55,6 +57,7 @@ struct SessionStep {
   bool has_force = false;
   std::optional<Eigen::Vector3d> probe_tip_m;    // world frame, from the step's pose
   FrameDetections detections;                    // [camera in calibration order][dot]
+  FrameDetections shaft_detections;              // probe shaft-marker candidates, same layout
   std::vector<int> frames_found;                 // per camera: 1 when a frame was found
   std::vector<Eigen::Vector3d> truth_markers_m;  // /sim/ground_truth markers_m (world); empty: none
   // /sim/ground_truth cameras.NAME.occluded, in calibration camera order (empty when absent).
@@ -81,11 +84,22 @@ struct SessionDetections {
   std::vector<calib::CameraModel> cameras;  // calibration order, only cameras of the session
   std::vector<SessionStep> steps;
   bool has_truth = false;
+  // The probe's shaft-marker distances from the tip along the shaft (m; nearer the tip first) as
+  // the session's rig config gives them: world.probe.marker_distances_m of a simulated rig, else
+  // the simulator's default probe (0.06, 0.11) when the rig is simulated (a `world` section or a
+  // `backend: sim` device); unset for other rigs (SessionTrackOptions can give them).
+  std::optional<std::array<double, 2>> shaft_marker_distances_m;
   StageTimes times;
 };
 
 struct SessionReadOptions {
   markers::BlobOptions blobs;
+  // The probe's shaft markers are balls several times wider than the specimen's dots: a dot whose
+  // area exceeds blobs.max_area_px (up to shaft_marker_max_area_px), or shaft_marker_area_ratio
+  // times the median dot area of its frame (frames with >= 10 dots), goes to
+  // SessionStep::shaft_detections instead of the specimen's detections.
+  double shaft_marker_area_ratio = 6.0;
+  double shaft_marker_max_area_px = 60000.0;
   std::size_t max_steps = 0;             // 0: all
   int threads = 0;                       // detection threads (0: TBB's default)
   ProgressReporter* progress = nullptr;  // frames detected (null: none)
@@ -99,15 +113,50 @@ Result<SessionDetections> read_session_detections(const std::filesystem::path& s
                                                   const calib::RigCalibration& calibration,
                                                   const SessionReadOptions& options = {});
 
+// The probe's pose in one step (world frame).
+struct ProbePose {
+  Eigen::Vector3d tip_m = Eigen::Vector3d::Zero();  // lowest point of the tip sphere
+  Eigen::Vector3d axis = Eigen::Vector3d::UnitZ();  // unit, from the tip up the shaft
+  bool from_markers = false;  // from the shaft markers (else the arm's reported pose, axis +z)
+  // Triangulated shaft markers (when from_markers).
+  std::array<Eigen::Vector3d, 2> markers_m{Eigen::Vector3d::Zero(), Eigen::Vector3d::Zero()};
+};
+
+struct ProbePoseOptions {
+  // Shaft-marker distances from the tip (nearer first); unset: the session's
+  // (SessionDetections::shaft_marker_distances_m). Neither: the arm pose is used.
+  std::optional<std::array<double, 2>> shaft_marker_distances_m;
+  // The two triangulated markers must be (d1 - d0) apart within this.
+  double distance_tolerance_m = 1.5e-3;
+  MatchOptions match{
+      .epipolar_tolerance_px = 2.0, .support_tolerance_px = 2.0, .min_views = 2, .max_rms_px = 1.5};
+};
+
+// The probe's pose from its two shaft markers (thesis 4.4: "two markers on the white shaft"):
+// the candidates of every camera (rig-frame cameras, distorted pixels) are matched across views
+// (match_views), the pair of triangulated points whose distance is nearest d1 - d0 (within the
+// tolerance) is taken, marker 0 being the one nearer `specimen_world` (the specimen's measured
+// markers; the tip end of the shaft); axis = (m1 - m0) / |m1 - m0|, tip = m0 - d0 axis. nullopt
+// when fewer than two markers are found or no pair fits the shaft.
+std::optional<ProbePose> probe_pose_from_shaft_markers(
+    const std::vector<calib::CameraModel>& cameras, const FrameDetections& shaft_detections,
+    const Eigen::Isometry3d& world_from_rig, const std::array<double, 2>& distances_m,
+    const std::vector<Eigen::Vector3d>& specimen_world, const ProbePoseOptions& options = {});
+
 struct SessionTrackOptions {
   TrackOptions track;
+  ProbePoseOptions probe;
+  // The probe's pose per step from its shaft markers (the arm's reported pose where they are not
+  // both seen, or no shaft geometry is known); false: always the arm's pose.
+  bool probe_from_shaft_markers = true;
   double template_match_distance_m = 1.0e-3;
   double fixed_tolerance_m = 1.0e-6;
   double probe_radius_m = 0.005;  // sphere radius of the probe (the simulator's default)
   double contact_tolerance_m = 0.3e-3;
   double fill_regularization_m = 0.0;
-  // Filled nodes that would lie inside the probe sphere (pose from the step record) are put on
-  // its surface and used as constraints of the fill.
+  // The probe sphere constrains the fill: filled nodes inside it and surface nodes within its
+  // contact patch are put on it, and the patch itself is a constraint (session_tracking.cpp
+  // fill_with_probe_contact).
   bool probe_constraint = true;
   // Measured markers used as RBF centres per step: the ones nearest the unmeasured markers and
   // the probe (0: all). The solve is cubic in this number.
@@ -129,13 +178,26 @@ struct TrackSummary {
   std::size_t filled = 0;             // (marker, step) pairs filled
   double filled_truth_rms_error_m = 0;
   double filled_truth_max_error_m = 0;
+  // Probe pose: steps whose pose came from the shaft markers, steps that fell back to the arm's
+  // pose (fewer than two shaft markers seen, or no shaft geometry), steps with neither, and a
+  // sentence saying which (for the CLI).
+  std::size_t probe_from_markers = 0;
+  std::size_t probe_fallbacks = 0;
+  std::size_t probe_missing = 0;
+  std::string probe_source;
+  // Tip of the marker-derived poses vs the simulator's probe_tip_m (when both exist).
+  bool has_probe_truth = false;
+  double probe_truth_rms_error_m = 0;
+  double probe_truth_max_error_m = 0;
+  double probe_axis_truth_max_error_rad = 0;
   StageTimes times;
 };
 
 struct TrackedSession {
   material::Samples samples;
   TrackSummary summary;
-  std::vector<int> marker_node;  // per registered marker: template node
+  std::vector<int> marker_node;                 // per registered marker: template node
+  std::vector<std::optional<ProbePose>> probe;  // per step (nullopt: no pose at all)
 };
 
 // Tracks the detections, registers them to the template and builds the samples (one example per
