@@ -145,8 +145,12 @@ Result<HandEyeSessionData> read_hand_eye_session(const std::filesystem::path& se
                                      [](std::int64_t t, const ArmSample& a) { return t < a.t_ns; });
     if (it == states.begin()) continue;  // no arm state yet
     const devices::ArmPose& pose = std::prev(it)->pose;
-    Result<std::vector<tracking::MatchedPoint>> pts =
-        tracking::match_views(det.cameras, st.detections);
+    // Every dot of the step, the specimen's and the shaft-marker candidates the tracker sets
+    // apart by their size alike: the shaft markers are told apart below by their isolation.
+    tracking::FrameDetections all = st.detections;
+    for (std::size_t c = 0; c < all.size() && c < st.shaft_detections.size(); ++c)
+      all[c].insert(all[c].end(), st.shaft_detections[c].begin(), st.shaft_detections[c].end());
+    Result<std::vector<tracking::MatchedPoint>> pts = tracking::match_views(det.cameras, all);
     if (!pts.ok()) return pts.status().with_context(name);
     std::vector<Eigen::Vector3d> isolated, rest;
     for (std::size_t a = 0; a < pts->size(); ++a) {
