@@ -17,6 +17,8 @@
 #include <memory>
 #include <set>
 
+#include "common/openmp.h"
+
 namespace hc::calib {
 
 namespace {
@@ -27,6 +29,8 @@ double seconds_since(Clock::time_point t0) {
 }
 
 constexpr int kIntrinsics = 9;  // fx fy cx cy k1 k2 p1 p2 k3
+// Views per camera for the single-camera OpenCV calibration that initialises calibrate_rig.
+constexpr int kInitViews = 20;
 
 double median(std::vector<double> v) {
   if (v.empty()) return 0.0;
@@ -137,8 +141,12 @@ struct OpenCvCalibration {
   std::vector<int> points;
 };
 
+// max_views > 0: calibrateCamera on at most that many views spread through the list, then every
+// view's pose by solvePnP with those intrinsics (an initial guess for the bundle adjustment:
+// calibrateCamera's dense Levenberg-Marquardt over 9 + 6 N parameters took 17 s for 7 cameras x
+// ~45 views, the subset plus solvePnP a fraction of it; the joint solve refines everything).
 Result<OpenCvCalibration> run_opencv(const CameraObservations& cam, const BoardSpec& board,
-                                     const CalibrationOptions& options) {
+                                     const CalibrationOptions& options, int max_views = 0) {
   if (cam.width <= 0 || cam.height <= 0)
     return invalid_argument(fmt::format("camera '{}': image size unknown", cam.name));
   std::vector<std::vector<cv::Point3f>> object;
@@ -174,16 +182,33 @@ Result<OpenCvCalibration> run_opencv(const CameraObservations& cam, const BoardS
     return invalid_argument(fmt::format(
         "camera '{}': the board was found in {} view(s) with at least {} corners; need {}",
         cam.name, object.size(), options.min_points_per_view, options.min_views_per_camera));
+  const bool subset = max_views > 0 && static_cast<int>(object.size()) > max_views;
+  std::vector<std::vector<cv::Point3f>> object_subset;
+  std::vector<std::vector<cv::Point2f>> image_subset;
+  if (subset)
+    for (int k = 0; k < max_views; ++k) {
+      const std::size_t i =
+          static_cast<std::size_t>(k) * object.size() / static_cast<std::size_t>(max_views);
+      object_subset.push_back(object[i]);
+      image_subset.push_back(image[i]);
+    }
   try {
     out.K = cv::Mat::eye(3, 3, CV_64F);
     out.dist = cv::Mat::zeros(1, 5, CV_64F);
     cv::Mat std_ext;
     out.rms = cv::calibrateCamera(  // the overload with std devs and per-view errors
-
-        object, image, cv::Size(cam.width, cam.height), out.K, out.dist, out.rvecs, out.tvecs,
-        out.std_intrinsics, std_ext, out.per_view_errors, opencv_flags(options),
+        subset ? object_subset : object, subset ? image_subset : image,
+        cv::Size(cam.width, cam.height), out.K, out.dist, out.rvecs, out.tvecs, out.std_intrinsics,
+        std_ext, out.per_view_errors, opencv_flags(options),
         // OpenCV's default criteria (as its samples that produced the reference results).
         cv::TermCriteria(cv::TermCriteria::COUNT + cv::TermCriteria::EPS, 30, DBL_EPSILON));
+    if (subset) {
+      out.rvecs.assign(object.size(), cv::Mat());
+      out.tvecs.assign(object.size(), cv::Mat());
+      for (std::size_t i = 0; i < object.size(); ++i)
+        cv::solvePnP(object[i], image[i], out.K, out.dist, out.rvecs[i], out.tvecs[i]);
+      out.per_view_errors = cv::Mat();  // not computed for the views outside the subset
+    }
   } catch (const cv::Exception& e) {
     return invalid_argument(
         fmt::format("camera '{}': OpenCV calibrateCamera failed: {}", cam.name, e.what()));
@@ -345,7 +370,7 @@ Result<CalibrationSummary> calibrate_rig(const std::vector<CameraObservations>& 
   {
     ProgressTask task(options.progress, "intrinsics per camera", nc);
     for (std::size_t c = 0; c < nc; ++c) {
-      HC_ASSIGN_OR_RETURN(single[c], run_opencv(cameras[c], board, options));
+      HC_ASSIGN_OR_RETURN(single[c], run_opencv(cameras[c], board, options, kInitViews));
       for (std::size_t i = 0; i < single[c].views.size(); ++i)
         cam_from_board[c][single[c].views[i]] =
             pose_from_rvec(single[c].rvecs[i], single[c].tvecs[i]);
@@ -544,10 +569,15 @@ Result<CalibrationSummary> calibrate_rig(const std::vector<CameraObservations>& 
   ceres::Solver::Summary summary;
   {
     ProgressTask task(options.progress, "joint bundle adjustment", 0);
+    // SPARSE_SCHUR factorises through CHOLMOD, whose OpenMP team thrashes on 2 vCPUs
+    // (common/openmp.h).
+    SerialOpenMpScope serial_openmp;
     ceres::Solve(so, &problem, &summary);
   }
   s.solve_time_s = seconds_since(t_solve);
   s.iterations = static_cast<int>(summary.iterations.size());
+  s.converged = summary.termination_type == ceres::CONVERGENCE;
+  s.termination = summary.message;
   if (!summary.IsSolutionUsable())
     return invalid_argument("joint bundle adjustment failed: " + summary.message);
 
@@ -604,7 +634,12 @@ Result<CalibrationSummary> calibrate_rig(const std::vector<CameraObservations>& 
       blocks.emplace_back(intr[c].data(), intr[c].data());
       if (c > 0) blocks.emplace_back(cam_params[c].data(), cam_params[c].data());
     }
-    if (covariance.Compute(blocks, &problem)) {
+    bool computed = false;
+    {
+      SerialOpenMpScope serial_openmp;  // SPARSE_QR goes through SuiteSparseQR / CHOLMOD too
+      computed = covariance.Compute(blocks, &problem);
+    }
+    if (computed) {
       const int free_params = problem.NumParameters() - 6 - static_cast<int>(nc * fixed.size());
       const int dof = 2 * s.observations - free_params;
       double sq = 0.0;

@@ -66,7 +66,9 @@ struct CameraReport {
   int views = 0;
   int points = 0;
   double rms_px = 0.0;
-  double initial_rms_px = 0.0;  // of the single-camera OpenCV calibration (the initial guess)
+  // RMS of the single-camera OpenCV calibration that gave the initial guess (calibrate_rig runs
+  // it on at most 20 of the camera's views and finds the other views' poses by solvePnP).
+  double initial_rms_px = 0.0;
   // Standard deviations (empty when not computed): fx fy cx cy k1 k2 p1 p2 k3 (px and unitless;
   // 0 for fixed parameters) and the pose relative to camera 0 (rotation vector rad, t m; zeros
   // for camera 0, which defines the rig frame).
@@ -87,6 +89,10 @@ struct CalibrationSummary {
   int observations = 0;  // corner observations
   int board_poses = 0;
   int iterations = 0;
+  // Ceres stopped on a tolerance (function, gradient or parameter), not on the iteration limit
+  // or a failure; termination is Ceres' message.
+  bool converged = false;
+  std::string termination;
   double initial_joint_rms_px = 0.0;
   double init_time_s = 0.0;
   double solve_time_s = 0.0;
