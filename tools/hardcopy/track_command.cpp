@@ -2,13 +2,18 @@
 #include <fmt/format.h>
 
 #include <chrono>
+#include <cmath>
 #include <cstdio>
+#include <cstdlib>
+#include <optional>
 #include <string>
+#include <vector>
 
 #include "calibration/cameras/camera_model.h"
 #include "command.h"
 #include "common/json.h"
 #include "common/tet_mesh_io.h"
+#include "processing/markers/dots.h"
 #include "processing/material/samples.h"
 #include "processing/tracking/session_tracking.h"
 
@@ -23,9 +28,43 @@ struct TrackArgs {
   std::size_t max_steps = 0;
   double probe_radius_m = 0.005;
   double match_distance_m = 1.0e-3;
+  std::string markers = "blobs";
+  std::vector<double> shaft_markers_m;
+  bool probe_from_arm = false;
   int threads = 0;
   bool json = false;
 };
+
+// `--markers blobs | color:L,a,b,TOL`: the dot detector. A colour is a box of half-width TOL
+// around (L, a, b) in CIE Lab (L in [0, 100], a and b in [-128, 127]).
+Result<std::optional<markers::ColorDotOptions>> parse_markers(const std::string& spec) {
+  if (spec == "blobs") return std::optional<markers::ColorDotOptions>();
+  const std::string bad = fmt::format(
+      "--markers '{}': expected 'blobs' or 'color:L,a,b,TOL' (CIE Lab centre and half-width)",
+      spec);
+  if (!spec.starts_with("color:")) return invalid_argument(bad);
+  std::vector<double> v;
+  std::size_t pos = 6;
+  while (pos <= spec.size()) {
+    const std::size_t comma = std::min(spec.find(',', pos), spec.size());
+    const std::string item = spec.substr(pos, comma - pos);
+    char* end = nullptr;
+    const double x = std::strtod(item.c_str(), &end);
+    if (item.empty() || end != item.c_str() + item.size() || !std::isfinite(x))
+      return invalid_argument(bad);
+    v.push_back(x);
+    pos = comma + 1;
+  }
+  if (v.size() != 4 || !(v[3] > 0)) return invalid_argument(bad);
+  markers::ColorDotOptions o;
+  markers::ColorClass c;
+  c.name = "marker";
+  c.lab_min = Eigen::Vector3d(v[0], v[1], v[2]) - Eigen::Vector3d::Constant(v[3]);
+  c.lab_max = Eigen::Vector3d(v[0], v[1], v[2]) + Eigen::Vector3d::Constant(v[3]);
+  o.colors.push_back(c);
+  if (Status s = o.validate(); !s.ok()) return invalid_argument(bad + ": " + s.message());
+  return std::optional<markers::ColorDotOptions>(o);
+}
 
 int run_track(const GlobalOptions& global, const TrackArgs& args) {
   Context ctx(global);
@@ -37,7 +76,15 @@ int run_track(const GlobalOptions& global, const TrackArgs& args) {
   if (!templ.ok())
     return ctx.fail(kName, invalid_argument(fmt::format("template {}: {}", args.templ,
                                                         templ.status().to_string())));
+  Result<std::optional<markers::ColorDotOptions>> color = parse_markers(args.markers);
+  if (!color.ok()) return ctx.fail(kName, color.status());
+  if (!args.shaft_markers_m.empty() &&
+      (args.shaft_markers_m.size() != 2 || !(args.shaft_markers_m[0] > 0) ||
+       !(args.shaft_markers_m[1] > args.shaft_markers_m[0])))
+    return ctx.fail(kName,
+                    invalid_argument("--shaft-markers: expected D0,D1 with 0 < D0 < D1 (m)"));
   tracking::SessionReadOptions ro;
+  ro.color = *color;
   ro.max_steps = args.max_steps;
   ro.threads = args.threads;
   ro.progress = ctx.progress();
@@ -47,6 +94,9 @@ int run_track(const GlobalOptions& global, const TrackArgs& args) {
   tracking::SessionTrackOptions to;
   to.probe_radius_m = args.probe_radius_m;
   to.template_match_distance_m = args.match_distance_m;
+  to.probe_from_shaft_markers = !args.probe_from_arm;
+  if (!args.shaft_markers_m.empty())
+    to.probe.shaft_marker_distances_m = {args.shaft_markers_m[0], args.shaft_markers_m[1]};
   Result<tracking::TrackedSession> tr = tracking::track_detections(*det, *cal, *templ, to);
   if (!tr.ok()) return ctx.fail(kName, tr.status());
   if (Status s = material::save_samples(args.output, tr->samples); !s.ok())
@@ -65,6 +115,9 @@ int run_track(const GlobalOptions& global, const TrackArgs& args) {
            {"reprojection_rms_px", s.reprojection_rms_px},
            {"registration_rms_m", s.registration_rms_m},
            {"filled", s.filled},
+           {"probe_source", s.probe_source},
+           {"probe_from_markers", s.probe_from_markers},
+           {"probe_fallbacks", s.probe_fallbacks},
            {"time_s", time_s},
            {"stage_times_s",
             {{"decode", s.times.decode_s},
@@ -79,6 +132,11 @@ int run_track(const GlobalOptions& global, const TrackArgs& args) {
       j["filled_truth_rms_error_m"] = s.filled_truth_rms_error_m;
       j["filled_truth_max_error_m"] = s.filled_truth_max_error_m;
     }
+    if (s.has_probe_truth) {
+      j["probe_truth_rms_error_m"] = s.probe_truth_rms_error_m;
+      j["probe_truth_max_error_m"] = s.probe_truth_max_error_m;
+      j["probe_axis_truth_max_error_rad"] = s.probe_axis_truth_max_error_rad;
+    }
     fmt::print("{}\n", j.dump(2));
   } else {
     fmt::print(
@@ -87,6 +145,9 @@ int run_track(const GlobalOptions& global, const TrackArgs& args) {
     if (s.has_truth)
       fmt::print(", truth error RMS {:.4f} mm (max {:.4f} mm)", s.truth_rms_error_m * 1e3,
                  s.truth_max_error_m * 1e3);
+    fmt::print("; probe pose: {}", s.probe_source);
+    if (s.has_probe_truth)
+      fmt::print(" (tip error RMS {:.4f} mm)", s.probe_truth_rms_error_m * 1e3);
     fmt::print("; {:.1f} s -> {}\n", time_s, args.output);
   }
   return kExitYes;
@@ -118,6 +179,19 @@ void add_track_commands(CLI::App& app, const GlobalOptions& global, int* exit_co
                 "Largest marker-to-template-node distance after registration, m")
       ->capture_default_str()
       ->check(CLI::PositiveNumber);
+  t->add_option("--markers", args->markers,
+                "Dot detector: 'blobs' (bright dots on a dark surface, Otsu threshold) or "
+                "'color:L,a,b,TOL' (painted dots of one colour: CIE Lab box of half-width TOL "
+                "around L in [0, 100], a, b in [-128, 127]; rgb8 frames; thesis 4.4.2)")
+      ->capture_default_str();
+  t->add_option("--shaft-markers", args->shaft_markers_m,
+                "The probe's two shaft markers' distances from the tip along the shaft, m "
+                "(D0,D1; default: the session's rig config); the probe pose per step comes from "
+                "them, else from the arm")
+      ->delimiter(',')
+      ->expected(2);
+  t->add_flag("--probe-from-arm", args->probe_from_arm,
+              "Take the probe pose from the arm's reported pose, not the shaft markers");
   t->add_option("--threads", args->threads, "Detection threads (0: all cores)")
       ->capture_default_str();
   t->add_flag("--json", args->json, "Print one JSON object");

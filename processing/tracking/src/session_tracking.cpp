@@ -11,6 +11,7 @@
 #include <array>
 #include <chrono>
 #include <cmath>
+#include <limits>
 #include <map>
 #include <set>
 
@@ -244,6 +245,7 @@ Result<SessionDetections> read_session_detections(const std::filesystem::path& s
                                                   const SessionReadOptions& options) {
   const auto t_start = Clock::now();
   HC_RETURN_IF_ERROR(options.blobs.validate());
+  if (options.color) HC_RETURN_IF_ERROR(options.color->validate());
   if (!(options.shaft_marker_area_ratio > 1.0) || !(options.shaft_marker_max_area_px >= 0.0))
     return invalid_argument("shaft_marker_area_ratio must be > 1, shaft_marker_max_area_px >= 0");
   Result<recording::McapReader> opened = recording::McapReader::open(session);
@@ -448,6 +450,8 @@ Result<SessionDetections> read_session_detections(const std::filesystem::path& s
   // Detected up to the shaft markers' size, then split by area (see SessionReadOptions).
   markers::BlobOptions blobs = options.blobs;
   blobs.max_area_px = std::max(blobs.max_area_px, options.shaft_marker_max_area_px);
+  std::optional<markers::ColorDotOptions> color = options.color;
+  if (color) color->max_area_px = std::max(color->max_area_px, options.shaft_marker_max_area_px);
   std::vector<PendingFrame> batch, running;
   std::vector<Result<std::vector<markers::Dot>>> running_results;
   constexpr std::size_t kBatch = 6;
@@ -461,14 +465,15 @@ Result<SessionDetections> read_session_detections(const std::filesystem::path& s
     wait_s += seconds_since(tw);
     for (std::size_t i = 0; i < running.size(); ++i) {
       if (!running_results[i].ok()) {
-        detect_error = running_results[i].status();
+        detect_error = running_results[i].status().with_context(
+            fmt::format("{}: camera '{}'", name, out.cameras[running[i].camera].name));
         continue;
       }
       SessionStep& st = steps[running[i].step];
       auto& dets = st.detections[running[i].camera];
       auto& shaft = st.shaft_detections[running[i].camera];
       const std::vector<markers::Dot>& dots = *running_results[i];
-      double big = options.blobs.max_area_px;
+      double big = options.color ? options.color->max_area_px : options.blobs.max_area_px;
       if (dots.size() >= 10) {
         std::vector<double> areas;
         for (const markers::Dot& d : dots) areas.push_back(d.area_px);
@@ -496,7 +501,8 @@ Result<SessionDetections> read_session_detections(const std::filesystem::path& s
             static_cast<std::ptrdiff_t>(im.step),
             im.encoding == "rgb8" ? markers::PixelFormat::kRgb8 : markers::PixelFormat::kMono8,
             im.data.data()};
-        running_results[i] = markers::detect_blobs(v, blobs);
+        running_results[i] =
+            options.color ? markers::detect_color_dots(v, *color) : markers::detect_blobs(v, blobs);
         detect_ns +=
             std::chrono::duration_cast<std::chrono::nanoseconds>(Clock::now() - t0).count();
       });

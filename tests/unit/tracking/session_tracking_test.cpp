@@ -9,6 +9,9 @@
 
 #include "cli_run.h"
 #include "common/tet_mesh_io.h"
+#include "processing/markers/dots.h"
+#include "rig_daemon/recording/foxglove_image.h"
+#include "rig_daemon/recording/mcap_reader.h"
 #include "rig_daemon/recording/mcap_writer.h"
 #include "test_data.h"
 #include "track_support.h"
@@ -17,6 +20,64 @@ namespace hc::tracking {
 namespace {
 
 using hc::testing::ScratchDir;
+
+// The painted-dot colour of the coloured copy below: grey level v becomes (v, 0.55 v, 0.2 v), so
+// the simulator's dots (220) are orange, the background (30) near black and the probe (90) dark
+// brown.
+Eigen::Vector3d colourise(double v) { return Eigen::Vector3d(v, 0.55 * v, 0.2 * v); }
+
+// A copy of a session with every camera frame logged before `end_ns` turned into rgb8 through
+// colourise() (later frames are left out: the test tracks the first steps only); every other
+// channel, schema and metadata record is copied as is.
+Status colour_copy(const std::filesystem::path& in, const std::filesystem::path& out,
+                   std::uint64_t end_ns) {
+  HC_ASSIGN_OR_RETURN(recording::McapReader reader, recording::McapReader::open(in));
+  HC_ASSIGN_OR_RETURN(std::unique_ptr<recording::McapWriter> w,
+                      recording::McapWriter::open(out, {}));
+  for (const auto& [id, schema] : reader.schemas()) HC_RETURN_IF_ERROR(w->add_schema(schema));
+  for (const auto& [id, channel] : reader.channels()) HC_RETURN_IF_ERROR(w->add_channel(channel));
+  HC_ASSIGN_OR_RETURN(std::vector<recording::Metadata> metadata, reader.read_metadata());
+  for (const recording::Metadata& m : metadata)
+    HC_RETURN_IF_ERROR(w->write_metadata(m.name, m.metadata));
+  std::array<std::uint8_t, 256 * 3> lut{};
+  for (int v = 0; v < 256; ++v) {
+    const Eigen::Vector3d c = colourise(v);
+    for (int i = 0; i < 3; ++i)
+      lut[static_cast<std::size_t>(3 * v + i)] = static_cast<std::uint8_t>(std::lround(c[i]));
+  }
+  Status st;
+  recording::ReadOptions ro;
+  ro.order = recording::ReadOrder::kFile;
+  HC_RETURN_IF_ERROR(reader.read_messages(ro, [&](const recording::MessageEvent& e) {
+    const recording::MessageView& m = e.message;
+    if (!e.channel->topic.ends_with("/image")) {
+      st = w->write_message(m.channel_id, m.log_time, m.publish_time, m.data, m.sequence);
+      return st.ok();
+    }
+    if (m.log_time >= end_ns) return true;
+    Result<recording::RawImage> im = recording::decode_raw_image(m.data);
+    if (!im.ok() || im->encoding != "mono8") {
+      st = internal_error("not a mono8 frame");
+      return false;
+    }
+    recording::RawImage rgb = *im;
+    rgb.encoding = "rgb8";
+    rgb.step = 3 * im->width;
+    rgb.data.resize(static_cast<std::size_t>(rgb.step) * rgb.height);
+    for (std::uint32_t y = 0; y < im->height; ++y)
+      for (std::uint32_t x = 0; x < im->width; ++x) {
+        const std::uint8_t v = im->data[static_cast<std::size_t>(y) * im->step + x];
+        for (std::uint32_t i = 0; i < 3; ++i)
+          rgb.data[static_cast<std::size_t>(y) * rgb.step + 3 * x + i] = lut[3u * v + i];
+      }
+    recording::Bytes bytes;
+    recording::encode_raw_image(rgb, bytes);
+    st = w->write_message(m.channel_id, m.log_time, m.publish_time, bytes, m.sequence);
+    return st.ok();
+  }));
+  HC_RETURN_IF_ERROR(st);
+  return w->close().status();
+}
 
 class SimulatedPress : public ::testing::Test {
  protected:
@@ -251,6 +312,56 @@ TEST_F(SimulatedPress, ProbeHiddenMarkersAreFilledWithinHalfAMillimetreOverTheWh
   EXPECT_LE(tr->summary.filled_truth_rms_error_m, 0.25e-3);
 }
 
+// `hardcopy track --markers color:L,a,b,TOL` (thesis 4.4.2's coloured dots, CIE Lab thresholds)
+// on an rgb8 copy of the session's first 2 steps whose dots are orange: the same markers within
+// the same 0.1 mm of the truth as the blob detector, the shaft markers (orange too) still give the
+// probe. Bad --markers / --shaft-markers values and a colour detector on mono8 frames: exit 2.
+TEST_F(SimulatedPress, CliTracksColouredDots) {
+  ASSERT_FALSE(session_->empty());
+  const SessionDetections& det = detections();
+  ASSERT_GE(det.steps.size(), 3u);
+  const std::filesystem::path coloured = dir_->path() / "coloured.mcap";
+  ASSERT_TRUE(
+      colour_copy(*session_, coloured, static_cast<std::uint64_t>(det.steps[2].edge_host_ns)).ok());
+  const std::filesystem::path calib = dir_->path() / "calib_colour.yml";
+  ASSERT_TRUE(calib::write_rig_calibration(calib, *calibration_).ok());
+  ASSERT_TRUE(write_tetgen(dir_->path() / "block_colour", testing::block_template()).ok());
+  const Eigen::Vector3d lab = markers::rgb_to_lab(colourise(220));
+  const std::string common = fmt::format("track {{}} --calib {} --template {} --max-steps 2 ",
+                                         calib.string(), (dir_->path() / "block_colour").string());
+  const std::filesystem::path out = dir_->path() / "samples_colour.json";
+  hc::testing::CliRun r =
+      hc::testing::hardcopy(fmt::format(fmt::runtime(common), coloured.string()) +
+                            fmt::format("--markers color:{:.2f},{:.2f},{:.2f},20 --json -o {}",
+                                        lab[0], lab[1], lab[2], out.string()));
+  ASSERT_EQ(r.exit_code, 0) << r.out;
+  const Json j = Json::parse(r.out, nullptr, false);
+  ASSERT_FALSE(j.is_discarded()) << r.out;
+  EXPECT_EQ(j["steps"], 2);
+  EXPECT_GE(j["markers"].get<int>(), 430);
+  EXPECT_LE(j["truth_rms_error_m"].get<double>(), 1e-4);
+  EXPECT_GE(j["matched_fraction"].get<double>(), 0.99);
+  EXPECT_EQ(j["probe_from_markers"], 2);
+  EXPECT_LE(j["probe_truth_rms_error_m"].get<double>(), 1e-4);
+  EXPECT_TRUE(material::load_samples(out).ok());
+
+  const std::filesystem::path bad_out = dir_->path() / "bad_colour.json";
+  for (const std::string& bad :
+       {fmt::format(fmt::runtime(common), coloured.string()) + "--markers colour:1,2,3,4",
+        fmt::format(fmt::runtime(common), coloured.string()) + "--markers color:60,30,50",
+        fmt::format(fmt::runtime(common), coloured.string()) + "--markers color:60,30,50,0",
+        fmt::format(fmt::runtime(common), coloured.string()) + "--markers color:60,x,50,10",
+        fmt::format(fmt::runtime(common), coloured.string()) + "--shaft-markers 0.03,0.01",
+        fmt::format(fmt::runtime(common), session_->string()) + "--markers color:60,30,50,20"}) {
+    r = hc::testing::run_command((hc::testing::bin_dir() / "hardcopy").string() + " " + bad +
+                                 " -o " + bad_out.string() + " 2>&1");
+    EXPECT_EQ(r.exit_code, 2) << bad << "\n" << r.out;
+    EXPECT_FALSE(std::filesystem::exists(bad_out)) << bad;
+  }
+  // The last one: mono8 frames have no colour, and the message names the camera.
+  EXPECT_NE(r.out.find("cam"), std::string::npos) << r.out;
+}
+
 // Steps where fewer than two shaft markers are seen fall back to the arm's reported pose, and the
 // summary says so; without shaft geometry (or with the option off) every step uses the arm.
 TEST_F(SimulatedPress, ProbePoseFallsBackToTheArmPose) {
@@ -333,6 +444,10 @@ TEST_F(SimulatedPress, CliWritesSamplesAndPrintsTheJsonContract) {
   EXPECT_GE(j["markers"].get<int>(), 430);
   EXPECT_LE(j["truth_rms_error_m"].get<double>(), 1e-4);
   EXPECT_GE(j["matched_fraction"].get<double>(), 0.99);
+  EXPECT_EQ(j["probe_from_markers"], 5);
+  EXPECT_EQ(j["probe_fallbacks"], 0);
+  EXPECT_EQ(j["probe_source"], "shaft markers in every step");
+  EXPECT_LE(j["probe_truth_rms_error_m"].get<double>(), 1e-4);
   Result<material::Samples> samples = material::load_samples(out);
   ASSERT_TRUE(samples.ok()) << samples.status().to_string();
   EXPECT_EQ(samples->examples.size(), 5u);

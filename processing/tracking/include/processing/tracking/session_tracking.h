@@ -94,6 +94,10 @@ struct SessionDetections {
 
 struct SessionReadOptions {
   markers::BlobOptions blobs;
+  // Coloured dots (thesis 4.4.2: per-colour thresholds in CIE Lab) instead of the blob detector:
+  // detect_color_dots with these options on every frame (frames must be rgb8); the shaft markers
+  // (painted in a dot colour too) are split off as above, by color->max_area_px.
+  std::optional<markers::ColorDotOptions> color;
   // The probe's shaft markers are balls several times wider than the specimen's dots: a dot whose
   // area exceeds blobs.max_area_px (up to shaft_marker_max_area_px), or shaft_marker_area_ratio
   // times the median dot area of its frame (frames with >= 10 dots), goes to
