@@ -145,15 +145,31 @@ Result<HandEyeSessionData> read_hand_eye_session(const std::filesystem::path& se
                                      [](std::int64_t t, const ArmSample& a) { return t < a.t_ns; });
     if (it == states.begin()) continue;  // no arm state yet
     const devices::ArmPose& pose = std::prev(it)->pose;
-    // Every dot of the step, the specimen's and the shaft-marker candidates the tracker sets
-    // apart by their size alike: the shaft markers are told apart below by their isolation.
+    std::vector<Eigen::Vector3d> isolated, rest;
+    // The tracker's reader sets apart the dots several times a specimen dot's area (the shaft
+    // markers are such balls on a high-resolution rig): exactly two points matched from those
+    // are the two markers. Otherwise (small images: the markers are not told apart by size) they
+    // are the two points isolated from every other.
+    const bool any_shaft = std::any_of(st.shaft_detections.begin(), st.shaft_detections.end(),
+                                       [](const auto& c) { return !c.empty(); });
+    if (any_shaft) {
+      Result<std::vector<tracking::MatchedPoint>> shaft =
+          tracking::match_views(det.cameras, st.shaft_detections);
+      if (!shaft.ok()) return shaft.status().with_context(name);
+      if (shaft->size() == 2) isolated = {(*shaft)[0].point_m, (*shaft)[1].point_m};
+    }
+    const bool by_size = isolated.size() == 2;
     tracking::FrameDetections all = st.detections;
-    for (std::size_t c = 0; c < all.size() && c < st.shaft_detections.size(); ++c)
-      all[c].insert(all[c].end(), st.shaft_detections[c].begin(), st.shaft_detections[c].end());
+    if (!by_size)
+      for (std::size_t c = 0; c < all.size() && c < st.shaft_detections.size(); ++c)
+        all[c].insert(all[c].end(), st.shaft_detections[c].begin(), st.shaft_detections[c].end());
     Result<std::vector<tracking::MatchedPoint>> pts = tracking::match_views(det.cameras, all);
     if (!pts.ok()) return pts.status().with_context(name);
-    std::vector<Eigen::Vector3d> isolated, rest;
     for (std::size_t a = 0; a < pts->size(); ++a) {
+      if (by_size) {
+        rest.push_back((*pts)[a].point_m);
+        continue;
+      }
       double nn = std::numeric_limits<double>::infinity();
       for (std::size_t b = 0; b < pts->size(); ++b)
         if (a != b) nn = std::min(nn, ((*pts)[a].point_m - (*pts)[b].point_m).norm());

@@ -7,6 +7,7 @@
 #include "calibration/arm/hand_eye_session.h"
 #include "calibration/cameras/camera_model.h"
 #include "cli_run.h"
+#include "common/file_io.h"
 #include "common/json.h"
 #include "rig_daemon/daemon/daemon.h"
 #include "rig_daemon/daemon/plan.h"
@@ -50,6 +51,7 @@ Result<RigCalibration> true_rig(const std::filesystem::path& session) {
     RigCalibration rig;
     Eigen::Isometry3d cam0_from_world = Eigen::Isometry3d::Identity();
     for (const char* name : {"cam0", "cam1", "cam2", "cam3", "cam4", "cam5", "cam6"}) {
+      if (!j.contains(name)) continue;  // not a camera of the session
       const Json& c = j.at(name);
       Eigen::Isometry3d cam_from_world = Eigen::Isometry3d::Identity();
       for (int a = 0; a < 3; ++a) {
@@ -130,6 +132,82 @@ TEST(HandEyeSession, SimulatedAutomatedSessionRecoversCam0Pose) {
   EXPECT_LT(
       (written->world_from_rig.translation() - r->solution.world_from_rig.translation()).norm(),
       1e-9);
+}
+
+// The demo's high-resolution rig (rig_sim_hires.yaml) at half its resolution, three of its
+// cameras (1600 x 1200 frames would cost the test four times the time): the shaft markers (20
+// and 45 mm above the tip, as there) are many times the specimen dots' area, so the tracker's
+// reader sets them apart (SessionStep::shaft_detections); they must still reach the hand-eye (a
+// reader looking at the specimen detections alone used none of the demo's 120 steps).
+constexpr std::string_view kHalfHiresRig = R"(devices:
+  cam0: {kind: camera, backend: sim, width: 800, height: 600, fx: 1750, fy: 1750,
+         cx: 401.6, cy: 298.9, distortion: [-0.045, 0.08, 0.0003, -0.0002, 0.0],
+         position_m: [0.2200, 0.0000, 0.25], look_at_m: [0, 0, 0.055]}
+  cam1: {kind: camera, backend: sim, width: 800, height: 600, fx: 1750, fy: 1750,
+         cx: 398.0, cy: 301.7, distortion: [-0.052, 0.095, -0.0002, 0.0001, 0.0],
+         position_m: [0.1100, -0.1905, 0.25], look_at_m: [0, 0, 0.055]}
+  cam2: {kind: camera, backend: sim, width: 800, height: 600, fx: 1750, fy: 1750,
+         cx: 402.5, cy: 301.1, distortion: [-0.041, 0.07, -0.0003, 0.0002, 0.0],
+         position_m: [-0.1100, -0.1905, 0.25], look_at_m: [0, 0, 0.055]}
+  trigger: {kind: trigger, backend: sim}
+  ft: {kind: force_torque, backend: sim}
+  arm: {kind: arm, backend: sim}
+workspace: {min_m: [-0.1, -0.1, 0.0], max_m: [0.1, 0.1, 0.2]}
+max_force_n: 50
+control_period_s: 0.001
+stall_timeout_s: 0.05
+seed: 1
+world:
+  probe: {marker_distances_m: [0.02, 0.045]}
+)";
+
+TEST(HandEyeSession, LargeShaftMarkersSetApartByTheTrackerAreUsed) {
+  ScratchDir dir;
+  Result<rig::RigConfig> cfg = rig::parse_rig_config(kHalfHiresRig, "rig.yaml");
+  ASSERT_TRUE(cfg.ok()) << cfg.status().to_string();
+  cfg->sessions_dir = dir.path();
+  rig::Daemon::Options o;
+  o.config = *cfg;
+  o.clock = std::make_shared<devices::SimulatedClock>(1'000'000'000);
+  o.software_version = "test";
+  Result<std::unique_ptr<rig::Daemon>> d = rig::Daemon::create(o);
+  ASSERT_TRUE(d.ok()) << d.status().to_string();
+  // Three locations (not collinear), the plan's minimum of 30 steps each, three cameras.
+  std::string plan_text(kPlan);
+  const auto replace = [&](std::string_view from, std::string_view to) {
+    const std::size_t at = plan_text.find(from);
+    ASSERT_NE(at, std::string::npos) << from;
+    plan_text.replace(at, from.size(), to);
+  };
+  replace("  - {position_m: [-0.02, -0.015, 0.062], direction: [0, 0, -1]}\n", "");
+  replace("force_levels_n: [8]", "force_levels_n: [2]");
+  replace("cameras: [cam0, cam1, cam2, cam3, cam4, cam5, cam6]", "cameras: [cam0, cam1, cam2]");
+  Result<rig::Plan> plan = rig::parse_plan(plan_text, "hand_eye.yaml");
+  ASSERT_TRUE(plan.ok()) << plan.status().to_string();
+  Result<Json> started = (*d)->start(*plan);
+  ASSERT_TRUE(started.ok()) << started.status().to_string();
+  ASSERT_TRUE((*d)->wait_idle(300000));
+  const Json summary = (*d)->last_summary();
+  ASSERT_EQ(summary["state"], "finished") << summary.dump(2);
+  const std::filesystem::path session = summary["session"].get<std::string>();
+  Result<RigCalibration> rig = true_rig(session);
+  ASSERT_TRUE(rig.ok()) << rig.status().to_string();
+  ASSERT_EQ(rig->cameras.size(), 3u);
+  HandEyeSessionOptions ho;
+  ho.marker0_tool_z_m = 0.02;  // as the demo: `--marker0-z 0.02`
+  Result<HandEyeSessionResult> r = calibrate_hand_eye_from_session(session, *rig, ho);
+  ASSERT_TRUE(r.ok()) << r.status().to_string();
+  RecordProperty("result", r->to_json().dump());
+  EXPECT_EQ(r->steps, 90u);
+  // Measured: 90 of 90 steps, no outliers, translation error 0.117 mm, rotation 0.024 deg, shaft
+  // markers 0.022 mm RMS off the truth (f = 1750 px at ~0.3 m: ~0.17 mm per px). Bounds ~5x.
+  EXPECT_GE(r->steps_used, 80u);
+  EXPECT_EQ(r->solution.outliers, 0u);
+  ASSERT_TRUE(r->has_truth_transform);
+  ASSERT_TRUE(r->has_truth);
+  EXPECT_LT(r->truth_translation_error_m, 0.6e-3);
+  EXPECT_LT(r->truth_rotation_error_deg, 0.12);
+  EXPECT_LT(r->truth_rms_m, 0.1e-3);
 }
 
 }  // namespace
