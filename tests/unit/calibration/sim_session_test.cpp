@@ -9,6 +9,7 @@
 #include <nlohmann/json.hpp>
 
 #include "calibration/cameras/camera_model.h"
+#include "calibration/cameras/synthetic.h"
 #include "cli_run.h"
 #include "rig_daemon/daemon/daemon.h"
 #include "rig_daemon/daemon/plan.h"
@@ -23,10 +24,13 @@ namespace {
 
 using hc::testing::ScratchDir;
 
-// Tolerances: 0.05 % in focal length and 0.5 mm in camera centre — the simulator renders the board
-// through the exact model with anti-aliased edges (corner error < 0.05 px mean, SIMRIG's
-// sim_scene_test), so the remaining error is detection noise over 20 poses (measured 0.02 % and
-// ~0.2 mm on this capture).
+// Tolerances: 0.05 % in focal length, issue 5's 0.1 mm on the camera centres after the best rigid
+// alignment onto the truth (the gauge-free error; measured 0.023 mm), and 0.5 mm on the raw centres
+// relative to camera 0 (measured 0.305 mm) — the simulator renders the board through the exact
+// model with anti-aliased edges (corner error < 0.05 px mean, SIMRIG's sim_scene_test), so the
+// remaining error is detection noise over 20 poses, and at f = 3500 px camera 0's principal point
+// is nearly indistinguishable from its orientation, which swings the whole rig about camera 0
+// (synthetic_rig_test.cpp's header).
 TEST(SimRigSession, CalibrationCaptureRecoversTrueCameras) {
   ScratchDir dir;
   Result<rig::RigConfig> cfg =
@@ -84,6 +88,7 @@ TEST(SimRigSession, CalibrationCaptureRecoversTrueCameras) {
   const Eigen::Matrix3d R0 = mat(truth[first]["R"]);
   const Eigen::Vector3d t0 = vec(truth[first]["t_m"]);
   double worst_f = 0.0, worst_c = 0.0;
+  std::vector<CameraModel> truth_rig;  // true cameras in the rig frame (compare_centres)
   for (const CameraModel& g : rig->cameras) {
     const nlohmann::json& t = truth[g.name];
     worst_f = std::max({worst_f, std::abs(g.fx - t["fx"].get<double>()) / t["fx"].get<double>(),
@@ -91,14 +96,21 @@ TEST(SimRigSession, CalibrationCaptureRecoversTrueCameras) {
     // True centre in the rig frame: x_rig = R0 x_world + t0.
     const Eigen::Vector3d c_rig = R0 * vec(t["center_m"]) + t0;
     worst_c = std::max(worst_c, (g.center_m() - c_rig).norm());
+    CameraModel tc = g;
+    tc.R = mat(t["R"]) * R0.transpose();
+    tc.t_m = -tc.R * c_rig;
+    truth_rig.push_back(tc);
   }
+  const CentreErrors ce = compare_centres(truth_rig, rig->cameras);
   std::printf(
       "  sim rig: %zu cameras, joint RMS %.4f px, worst focal error %.3f %%, worst centre "
-      "error %.3f mm\n",
-      rig->cameras.size(), j["joint_rms_px"].get<double>(), 100 * worst_f, 1e3 * worst_c);
+      "error %.3f mm raw, %.3f mm after rigid alignment (axial %.3f, lateral %.3f)\n",
+      rig->cameras.size(), j["joint_rms_px"].get<double>(), 100 * worst_f, 1e3 * worst_c,
+      1e3 * ce.aligned_m, 1e3 * ce.aligned_axial_m, 1e3 * ce.aligned_lateral_m);
   EXPECT_EQ(rig->cameras.size(), truth.size());
   EXPECT_LT(worst_f, 5e-4);
   EXPECT_LT(worst_c, 0.5e-3);
+  EXPECT_LT(ce.aligned_m, 0.1e-3);
   EXPECT_LT(j["joint_rms_px"].get<double>(), 0.1);
 }
 
