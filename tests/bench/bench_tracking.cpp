@@ -6,7 +6,8 @@
 //    (no detection): what merely looking at the frames costs.
 //  * BM_TrackSession: the whole `hardcopy track` pipeline on the same session; counters give the
 //    per-stage seconds (decode, detection, matching_triangulation, registration_filling), the
-//    ratio to the baseline and the truth error.
+//    ratio to the baseline, the truth error, the filled markers' worst error and the probe pose
+//    from the shaft markers (steps, fallbacks, tip error).
 //
 //   bench_tracking --benchmark_min_time=1
 #include <benchmark/benchmark.h>
@@ -118,6 +119,12 @@ void BM_TrackSession(benchmark::State& state) {
   if (f.baseline_s > 0) state.counters["x_decode_baseline"] = total / f.baseline_s;
   state.counters["truth_rms_um"] = sum.truth_rms_error_m * 1e6;
   state.counters["truth_matched_fraction"] = sum.truth_matched_fraction;
+  state.counters["filled"] = static_cast<double>(sum.filled);
+  state.counters["filled_truth_max_um"] = sum.filled_truth_max_error_m * 1e6;
+  state.counters["probe_from_markers"] = static_cast<double>(sum.probe_from_markers);
+  state.counters["probe_fallbacks"] = static_cast<double>(sum.probe_fallbacks);
+  state.counters["probe_tip_rms_um"] = sum.probe_truth_rms_error_m * 1e6;
+  state.counters["probe_tip_max_um"] = sum.probe_truth_max_error_m * 1e6;
 }
 BENCHMARK(BM_TrackSession)->Iterations(1)->Unit(benchmark::kSecond)->UseRealTime();
 

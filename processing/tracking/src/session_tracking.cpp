@@ -91,8 +91,9 @@ std::vector<std::uint8_t> boundary_nodes(const TetMesh& mesh) {
 // visible markers' displacements misses the dimple the sphere presses: the visible markers around
 // it moved less than the hidden ones under it, and a biharmonic interpolant through a deep point
 // under the tip and shallow ones around it overshoots below the sphere near the contact's edge
-// (a whole 30-step press reached 0.7 mm there). Two rules, applied to the current fill and the
-// fill solved again with the resulting points as constraints (3 passes: the contact set settles):
+// (a whole 30-step press reached 0.7 mm there). So the sphere cap over the contact patch is a
+// constraint of its own (below), and two rules are applied to the current fill, which is solved
+// again with the resulting points as constraints (3 passes: the contact set settles):
 //  * any filled point inside the sphere is moved onto it (along the push direction): the
 //    specimen cannot enter the probe;
 //  * a filled surface node within the contact radius a of the probe's axis is put on the sphere

@@ -10,8 +10,15 @@
 // within `template_match_distance_m` (e.g. the probe's shaft markers) are not part of the output.
 // A node is "visible" in an example when its marker was triangulated in that step; all other
 // nodes (occluded markers, interior and unpainted nodes) get positions from a smooth deformation
-// (3-D biharmonic RBF of the measured displacements, with filled points that would lie inside the
-// probe sphere moved onto it and added as constraints) and visible = 0.
+// (3-D biharmonic RBF of the measured displacements) constrained by the probe sphere: its cap
+// over the Hertz contact patch (radius sqrt(R d) at indentation d) and every filled point that
+// would lie inside it are put on the sphere, and visible = 0.
+//
+// The probe's pose per step comes from its two shaft markers (thesis 4.4: "two markers on the
+// white shaft"): dots several times larger than the specimen's are shaft-marker candidates,
+// matched and triangulated across the cameras; the tip is marker 0 minus its distance from the
+// tip along the shaft axis (distances from the session's rig config or SessionTrackOptions).
+// Steps where they are not both seen fall back to the arm's reported pose (counted).
 //
 // Session layout read (rig_daemon/daemon/session_layout.h): /<camera>/image (foxglove.RawImage
 // mono8 or rgb8), /session/sync (trigger index, edge time, F/T force), /session/steps (one per
