@@ -304,5 +304,33 @@ TEST(SimCameraRender, StoppingWithFramesInFlightNeitherBlocksNorLosesCount) {
   EXPECT_TRUE(again->deactivate().ok());
 }
 
+TEST(SimCameraRender, FramesFinishedBeforeADisconnectAreDeliveredFirst) {
+  RealTimeRig rig;
+  auto cam = rig.camera(kFastBigCamera);
+  ASSERT_TRUE(cam->activate().ok());
+  std::vector<Frame> frames;
+  std::this_thread::sleep_for(std::chrono::milliseconds(40));
+  ASSERT_TRUE(cam->read(frames, Duration(0)).ok());  // hands frames to the render threads
+  const std::size_t early = frames.size();
+  // Time enough for the render threads to finish the three buffered frames (milliseconds each),
+  // then the link goes down.
+  std::this_thread::sleep_for(std::chrono::seconds(1));
+  rig.world->inject({sim::Fault::Kind::kDisconnect, "cam", rig.world->clock().now_ns()});
+  Result<std::size_t> n = cam->read(frames, Duration(0));
+  ASSERT_TRUE(n.ok()) << n.status().to_string();  // the finished frames first
+  EXPECT_EQ(*n + early, 3u);
+  ASSERT_FALSE(frames.empty());
+  EXPECT_EQ(frames.front().frame_index, 0u);
+  EXPECT_TRUE(frames.back().valid());
+  // Then the error; the device is in kError and lets go of its render stream.
+  n = cam->read(frames, Duration(0));
+  EXPECT_EQ(n.status().code(), StatusCode::kUnavailable);
+  EXPECT_EQ(cam->state(), DeviceState::kError);
+  (void)cam->deactivate();
+  const DeviceStats st = cam->stats();
+  EXPECT_EQ(st.received, 3u);
+  EXPECT_EQ(st.errors, 1u);
+}
+
 }  // namespace
 }  // namespace hc::devices
