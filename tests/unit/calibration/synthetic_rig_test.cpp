@@ -43,6 +43,7 @@
 // Results here (Release): 3 cameras 0.2 px 60 poses 0.027 mm gauge-free / 0.12 mm raw; 7 cameras
 // 0.1 px 60 poses 0.054 / 0.11 mm; 7 cameras 0.3 px 80 poses 0.12 / 0.57 mm; rendered images
 // (3 cameras, 12 poses, detection error ~0.06 px RMS) 0.032 / 0.065 mm.
+#include <gtest/gtest.h>
 
 #include <algorithm>
 #include <cmath>
