@@ -657,7 +657,7 @@ class SimCamera final : public Camera {
  public:
   SimCamera(const DeviceContext& ctx, std::shared_ptr<World> world)
       : Camera(ctx), parts_(ctx, std::move(world)) {}
-  ~SimCamera() override { stop_worker(); }
+  ~SimCamera() override { stop_rendering(); }
 
   CameraInfo camera_info() const override {
     CameraInfo info;
@@ -691,7 +691,7 @@ class SimCamera final : public Camera {
   }
   // The frame due now: its stamps, lost/late accounting and the scene at mid-exposure are settled
   // here, on the reading thread (cheap); the pixels are rendered here (render_thread: false) or
-  // on the render thread.
+  // on the render threads.
   void emit(std::vector<Frame>& out) {
     const std::int64_t t = *exposure_start();
     const std::uint64_t index = k_++;
@@ -770,7 +770,7 @@ class SimCamera final : public Camera {
     std::string format = "mono8";
     node.optional("format", format, {"mono8"});
     // Rendering on the camera's own thread (default) or inside read() (the old synchronous path,
-    // kept for comparison); frame buffers of the render thread (queued + rendering + unread).
+    // kept for comparison); frame buffers of its stream (queued + rendering + unread).
     node.optional("render_thread", render_thread_);
     node.optional("render_buffers", render_buffers_, Bounds::between(1, 1024));
     exposure_ns_ = seconds_to_ns(exposure_s_);
@@ -791,7 +791,7 @@ class SimCamera final : public Camera {
     k_ = 0;
     edge_ = parts_.world().pulses_by(now);
     pending_.clear();
-    stop_worker();
+    stop_rendering();
     if (render_thread_) {
       if (!pool_) pool_ = RenderPool::shared();
       stream_ = std::make_shared<FrameStream>(setup_, static_cast<std::size_t>(render_buffers_),
@@ -801,11 +801,11 @@ class SimCamera final : public Camera {
   }
   Status on_deactivate() override {
     pending_.clear();
-    stop_worker();
+    stop_rendering();
     return {};
   }
   Status on_reset() override {
-    stop_worker();
+    stop_rendering();
     return parts_.connected(parts_.world().clock().now_ns());
   }
   Status on_software_trigger() override {
@@ -828,7 +828,7 @@ class SimCamera final : public Camera {
   }
 
  private:
-  // stream_read() with the render thread: frames due are handed to it, and read() returns the
+  // stream_read() with the render threads: frames due are handed to them, and read() returns the
   // frames it has finished. Simulated time: every frame handed over is waited for in the same
   // read(), so frames arrive exactly when (and as) the inline renderer delivers them and the
   // session stays deterministic. Real time: read() never waits for pixels beyond its timeout; a
@@ -870,9 +870,9 @@ class SimCamera final : public Camera {
         clock.sleep_until_ns(std::max(wake, now + 1));
     }
   }
-  // Frames handed to the render thread and never delivered are lost (a real camera stopped
+  // Frames handed to the render threads and never delivered are lost (a real camera stopped
   // mid-acquisition drops its in-flight buffers too).
-  void stop_worker() {
+  void stop_rendering() {
     if (!stream_) return;
     if (const std::size_t dropped = stream_->stop(); dropped > 0) count_lost(dropped);
     stream_.reset();
@@ -895,7 +895,7 @@ class SimCamera final : public Camera {
   std::uint64_t k_ = 0;
   std::uint64_t edge_ = 0;
   std::deque<std::int64_t> pending_;
-  std::vector<RenderedFrame> rendered_;  // taken from the render thread, not yet delivered
+  std::vector<RenderedFrame> rendered_;  // taken from the render threads, not yet delivered
   std::shared_ptr<RenderPool> pool_;     // the shared render threads (render_thread: true)
   std::shared_ptr<FrameStream> stream_;  // while active with render_thread
 };
