@@ -33,8 +33,7 @@ constexpr double kPressSpeedMps = 0.02;
 constexpr std::int64_t kEdgeTimeoutNs = 2'000'000'000;
 // How long to wait for a fresh F/T sample after an arm move. A stalled stream trips the safety
 // check (stall_timeout_s) in the same loop first; this only bounds the wait when the control
-// loop itself is slow (e.g. simulated cameras rendering seven 1600 x 1200 frames inside read()),
-// which is not a gap in the F/T stream.
+// loop itself is slow (e.g. a heavily loaded machine), which is not a gap in the F/T stream.
 constexpr std::int64_t kFtAfterMoveTimeoutNs = 1'000'000'000;
 // Progress events at most this often.
 constexpr std::int64_t kProgressPeriodNs = 100'000'000;
