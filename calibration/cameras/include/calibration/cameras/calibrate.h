@@ -67,7 +67,7 @@ struct CameraReport {
   int points = 0;
   double rms_px = 0.0;
   // RMS of the single-camera OpenCV calibration that gave the initial guess (calibrate_rig runs
-  // it on at most 20 of the camera's views and finds the other views' poses by solvePnP).
+  // it on at most 10 of the camera's views and finds the other views' poses by solvePnP).
   double initial_rms_px = 0.0;
   // Standard deviations (empty when not computed): fx fy cx cy k1 k2 p1 p2 k3 (px and unitless;
   // 0 for fixed parameters) and the pose relative to camera 0 (rotation vector rad, t m; zeros
