@@ -183,6 +183,8 @@ struct FitArgs {
   int max_iterations = material::ParameterFitOptions{}.max_iterations;
   std::string backend = "own";
   int threads = 0;
+  bool joint = false;
+  double joint_regularization = material::JointRefinementOptions{}.regularization_scale;
 };
 
 int run_fit(const GlobalOptions& global, const FitArgs& args) {
@@ -198,6 +200,8 @@ int run_fit(const GlobalOptions& global, const FitArgs& args) {
   options.rbf.tolerance = args.tolerance;
   options.rbf.max_basis = args.max_basis;
   options.threads = args.threads;
+  options.joint.enabled = args.joint;
+  options.joint.regularization_scale = args.joint_regularization;
   options.progress = ctx.progress();
   if (Status s = options.validate(); !s.ok()) return ctx.fail(kName, s);
   material::HeterogeneousFitSummary summary;
@@ -224,6 +228,8 @@ int run_fit(const GlobalOptions& global, const FitArgs& args) {
               {"time_s", summary.time_s},
               {"parameter_time_s", summary.parameter_time_s},
               {"rbf_time_s", summary.rbf_time_s},
+              {"joint", args.joint},
+              {"joint_time_s", summary.joint_time_s},
               {"unusable_examples", unusable}};
     if (Status s = print_json(j); !s.ok()) return ctx.fail(kName, s);
   } else {
@@ -334,6 +340,15 @@ void add_material_commands(CLI::App& app, const GlobalOptions& global, int* exit
       ->capture_default_str();
   h->add_option("--threads", fa->threads, "Examples fitted in parallel (0: all cores)")
       ->check(CLI::NonNegativeNumber);
+  h->add_flag("--joint", fa->joint,
+              "For noisy data: after the per-example fits, fit one material (per tet base "
+              "stiffness, Poisson's ratio and a strain stiffening) to ALL examples at once, "
+              "smoothing the material instead of each example's parameters (an extension of the "
+              "thesis's method; the material has one RBF centre per tet)");
+  h->add_option("--joint-regularization", fa->joint_regularization,
+                "With --joint: its Laplacian weight relative to --regularization")
+      ->check(CLI::NonNegativeNumber)
+      ->capture_default_str();
   h->callback([&global, fa, exit_code] { *exit_code = run_fit(global, *fa); });
 
   auto ea = std::make_shared<EvaluateArgs>();

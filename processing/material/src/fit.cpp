@@ -7,6 +7,7 @@
 // tests and bench_material_fit time both on the same problem.
 #include <ceres/ceres.h>
 #include <fmt/format.h>
+#include <tbb/parallel_for.h>
 
 #include <Eigen/Cholesky>
 #include <Eigen/SparseCore>
@@ -73,14 +74,17 @@ Status run_lm(const LmProblem& problem, const ParameterFitOptions& options, Eige
               ParameterFitSummary* summary) {
   const Eigen::Index n = q->size();
   const bool has_reg = problem.reg.rows() > 0;
+  const Eigen::SparseMatrix<double>& reg = problem.reg;
   Eigen::SparseMatrix<double> rtr;
-  if (has_reg) rtr = problem.reg.transpose() * problem.reg;
+  if (has_reg) rtr = reg.transpose() * reg;
   const bool has_target = has_reg && problem.reg_target.size() == problem.reg.rows();
+  const Eigen::VectorXd& reg_target = problem.reg_target;
   const auto reg_residual = [&](const Eigen::VectorXd& v) -> Eigen::VectorXd {
-    Eigen::VectorXd out = problem.reg * v;
-    if (has_target) out -= problem.reg_target;
+    Eigen::VectorXd out = reg * v;
+    if (has_target) out -= reg_target;
     return out;
   };
+
   const auto reg_cost = [&](const Eigen::VectorXd& v) {
     return has_reg ? reg_residual(v).squaredNorm() : 0.0;
   };
@@ -100,7 +104,7 @@ Status run_lm(const LmProblem& problem, const ParameterFitOptions& options, Eige
     at_current = true;
     HC_RETURN_IF_ERROR(problem.jacobian(*q, &j));
     Eigen::VectorXd g = j.transpose() * r;
-    if (has_reg) g += problem.reg.transpose() * reg_residual(*q);
+    if (has_reg) g += reg.transpose() * reg_residual(*q);
     Eigen::VectorXd diag = j.colwise().squaredNorm().transpose();
     if (has_reg) diag += rtr.diagonal();
     const double diag_floor = 1e-12 * std::max(diag.maxCoeff(), 1e-300);
@@ -516,6 +520,205 @@ Status fit_example(ExampleProblem* problem, const std::vector<LambdaAlpha>& init
   error_stats(r, &s->rms_error_m, &s->max_error_m);
   s->time_s = std::chrono::duration<double>(Clock::now() - t0).count();
   return {};
+}
+
+Status JointRefinementOptions::validate() const {
+  if (!(regularization_scale >= 0) || !std::isfinite(regularization_scale))
+    return invalid_argument("joint.regularization_scale: must be >= 0");
+  if (max_iterations < 1) return invalid_argument("joint.max_iterations: must be >= 1");
+  if (!(stiffening_regularization_scale >= 0) || !std::isfinite(stiffening_regularization_scale))
+    return invalid_argument("joint.stiffening_regularization_scale: must be >= 0");
+  if (passes < 1) return invalid_argument("joint.passes: must be >= 1");
+  return {};
+}
+
+Result<Material> fit_joint_material(const std::vector<ExampleProblem*>& problems,
+                                    std::vector<Eigen::Matrix<double, Eigen::Dynamic, 6>>* strains,
+                                    const std::vector<std::vector<LambdaAlpha>>& start,
+                                    const ParameterFitOptions& parameters,
+                                    const JointRefinementOptions& options,
+                                    ParameterFitSummary* summary) {
+  HC_RETURN_IF_ERROR(parameters.validate());
+  HC_RETURN_IF_ERROR(options.validate());
+  if (problems.empty()) return invalid_argument("fit_joint_material: no examples");
+  const std::size_t n = problems.size();
+  if (strains->size() != n || start.size() != n)
+    return invalid_argument("fit_joint_material: one strain matrix and start per example expected");
+  const auto t0 = Clock::now();
+  const Eigen::Index t = problems[0]->num_elements();
+  for (std::size_t i = 0; i < n; ++i)
+    if (problems[i]->num_elements() != t || (*strains)[i].rows() != t ||
+        static_cast<Eigen::Index>(start[i].size()) != t)
+      return invalid_argument(fmt::format("fit_joint_material: example {} differs in mesh", i));
+  const Reparam rp{parameters.max_poisson};
+  const double nu_max = parameters.max_poisson;
+  // The strain-dependent factor is kept above this (λ > 0 for any k).
+  constexpr double kMinFactor = 0.5;  // see fit.h
+
+  // Start: per element the geometric mean λ and the mean logit ν of the per-example estimates.
+  Eigen::VectorXd x = Eigen::VectorXd::Zero(3 * t);  // (ln λ0, logit(ν/ν_max), k ε_ref) per tet
+  for (Eigen::Index e = 0; e < t; ++e) {
+    for (std::size_t i = 0; i < n; ++i) {
+      const Eigen::Vector2d q = rp.to_q(start[i][static_cast<std::size_t>(e)]);
+      x(3 * e) += q(0) / static_cast<double>(n);
+      x(3 * e + 1) += q(1) / static_cast<double>(n);
+    }
+  }
+  std::vector<Eigen::VectorXd> r_norm(n, Eigen::VectorXd(t));
+  const auto update_norms = [&]() {
+    for (std::size_t i = 0; i < n; ++i)
+      for (Eigen::Index e = 0; e < t; ++e) r_norm[i](e) = (*strains)[i].row(e).norm();
+  };
+  update_norms();
+  double eps_ref = 0;
+  for (std::size_t i = 0; i < n; ++i) eps_ref = std::max(eps_ref, r_norm[i].maxCoeff());
+  if (!(eps_ref > 0)) eps_ref = 1;
+
+  const auto params_at = [&](const Eigen::VectorXd& v, std::size_t i, std::vector<LambdaAlpha>* p) {
+    p->resize(static_cast<std::size_t>(t));
+    for (Eigen::Index e = 0; e < t; ++e) {
+      const double factor = std::max(1.0 + v(3 * e + 2) * r_norm[i](e) / eps_ref, kMinFactor);
+      const double l = std::exp(v(3 * e)) * factor;
+      (*p)[static_cast<std::size_t>(e)] = {l, l * nu_max * sigmoid(v(3 * e + 1))};
+    }
+  };
+  Eigen::Index rows = 0;
+  std::vector<Eigen::Index> offset(n);
+  for (std::size_t i = 0; i < n; ++i) {
+    offset[i] = rows;
+    rows += problems[i]->num_measurements();
+  }
+  LmProblem lm;
+  lm.residual = [&](const Eigen::VectorXd& v, Eigen::VectorXd* r) -> Status {
+    r->resize(rows);
+    std::vector<Status> st(n);
+    tbb::parallel_for(std::size_t{0}, n, [&](std::size_t i) {
+      std::vector<LambdaAlpha> p;
+      params_at(v, i, &p);
+      Eigen::VectorXd ri;
+      st[i] = problems[i]->simulate(p, &ri);
+      if (st[i].ok()) r->segment(offset[i], ri.size()) = ri / problems[i]->scale_m();
+    });
+    for (const Status& s : st) HC_RETURN_IF_ERROR(s);
+    return {};
+  };
+  lm.jacobian = [&](const Eigen::VectorXd& v, Eigen::MatrixXd* j) -> Status {
+    j->resize(rows, 3 * t);
+    std::vector<Status> st(n);
+    tbb::parallel_for(std::size_t{0}, n, [&](std::size_t i) {
+      Eigen::MatrixXd ji;
+      st[i] = problems[i]->jacobian(&ji);
+      if (!st[i].ok()) return;
+      ji /= problems[i]->scale_m();
+      auto out = j->middleRows(offset[i], ji.rows());
+      for (Eigen::Index e = 0; e < t; ++e) {
+        const double raw = 1.0 + v(3 * e + 2) * r_norm[i](e) / eps_ref;
+        const double factor = std::max(raw, kMinFactor);
+        const double l0 = std::exp(v(3 * e));
+        const double sg = sigmoid(v(3 * e + 1));
+        const double nu = nu_max * sg;
+        const double l = l0 * factor;
+        const auto dl = ji.col(2 * e), da = ji.col(2 * e + 1);
+        out.col(3 * e) = l * (dl + nu * da);
+        out.col(3 * e + 1) = l * nu_max * sg * (1 - sg) * da;
+        if (raw > kMinFactor)
+          out.col(3 * e + 2) = l0 * r_norm[i](e) / eps_ref * (dl + nu * da);
+        else
+          out.col(3 * e + 2).setZero();
+      }
+    });
+    for (const Status& s : st) HC_RETURN_IF_ERROR(s);
+    return {};
+  };
+  // n γ ‖L c‖² per channel c (each example's Eq. 4.10 regulariser, summed), the Poisson prior.
+  const Eigen::SparseMatrix<double> laplacian = tet_umbrella_laplacian(problems[0]->mesh());
+  const double gamma = options.regularization_scale * parameters.regularization;
+  const double sg = std::sqrt(gamma * static_cast<double>(n));
+  const double k_weight = std::sqrt(options.stiffening_regularization_scale);
+  std::vector<Eigen::Triplet<double>> trip;
+  std::vector<double> target;
+  Eigen::Index reg_rows = 0;
+  if (gamma > 0) {
+    for (Eigen::Index k = 0; k < laplacian.outerSize(); ++k)
+      for (Eigen::SparseMatrix<double>::InnerIterator it(laplacian, k); it; ++it)
+        for (int c = 0; c < 3; ++c)
+          trip.emplace_back(static_cast<int>(3 * it.row() + c), static_cast<int>(3 * it.col() + c),
+                            sg * it.value() * (c == 2 ? k_weight : 1.0));
+    reg_rows = 3 * t;
+    target.assign(static_cast<std::size_t>(reg_rows), 0.0);
+  }
+  if (parameters.poisson_prior > 0) {
+    const double w = std::sqrt(parameters.poisson_prior * static_cast<double>(n));
+    const double q1 = rp.to_q({1.0, parameters.initial_poisson})(1);
+    for (Eigen::Index e = 0; e < t; ++e) {
+      trip.emplace_back(static_cast<int>(reg_rows + e), static_cast<int>(3 * e + 1), w);
+      target.push_back(w * q1);
+    }
+    reg_rows += t;
+  }
+  lm.reg.resize(reg_rows, 3 * t);
+  lm.reg.setFromTriplets(trip.begin(), trip.end());
+  lm.reg_target =
+      Eigen::Map<const Eigen::VectorXd>(target.data(), static_cast<Eigen::Index>(target.size()));
+  ParameterFitOptions lm_options = parameters;
+  lm_options.max_iterations = options.max_iterations;
+  ParameterFitSummary local;
+  ParameterFitSummary* s = summary ? summary : &local;
+  int iterations = 0;
+  for (int pass = 0; pass < options.passes; ++pass) {
+    if (pass > 0) {
+      // Strains under the current material (fixed-point sweeps as in evaluation).
+      std::vector<Status> st(n);
+      tbb::parallel_for(std::size_t{0}, n, [&](std::size_t i) {
+        std::vector<LambdaAlpha> p;
+        for (int sweep = 0; sweep < 3 && st[i].ok(); ++sweep) {
+          params_at(x, i, &p);
+          Eigen::VectorXd r;
+          st[i] = problems[i]->simulate(p, &r);
+          if (st[i].ok()) (*strains)[i] = problems[i]->strains();
+          for (Eigen::Index e = 0; e < t && st[i].ok(); ++e)
+            r_norm[i](e) = (*strains)[i].row(e).norm();
+        }
+      });
+      for (const Status& e : st) HC_RETURN_IF_ERROR(e);
+    }
+    *s = ParameterFitSummary{};
+    HC_RETURN_IF_ERROR(run_lm(lm, lm_options, &x, s));
+    iterations += s->iterations;
+  }
+  s->iterations = iterations;
+
+  Material material;
+  material.kind = MaterialKind::kHeterogeneous;
+  material.rbfs.resize(static_cast<std::size_t>(t));
+  for (Eigen::Index e = 0; e < t; ++e) {
+    StrainRbf& rbf = material.rbfs[static_cast<std::size_t>(e)];
+    const double l0 = std::exp(x(3 * e));
+    const double nu = nu_max * sigmoid(x(3 * e + 1));
+    const double w = l0 * x(3 * e + 2) / eps_ref;
+    rbf.centres = {Vector6d::Zero()};
+    rbf.weights.resize(1, 2);
+    rbf.weights << w, nu * w;
+    rbf.constant = Eigen::Vector2d(l0, nu * l0);
+    rbf.lambda_floor_pa = kMinFactor * l0;
+    rbf.max_poisson = nu_max;
+  }
+  double sum = 0, mx = 0;
+  Eigen::Index nodes = 0;
+  Eigen::VectorXd r;
+  HC_RETURN_IF_ERROR(lm.residual(x, &r));
+  for (std::size_t i = 0; i < n; ++i) {
+    const Eigen::Index m = problems[i]->num_measurements();
+    double rms = 0, emax = 0;
+    error_stats(r.segment(offset[i], m) * problems[i]->scale_m(), &rms, &emax);
+    sum += rms * rms * static_cast<double>(m / 3);
+    nodes += m / 3;
+    mx = std::max(mx, emax);
+  }
+  s->rms_error_m = std::sqrt(sum / static_cast<double>(std::max<Eigen::Index>(nodes, 1)));
+  s->max_error_m = mx;
+  s->time_s = std::chrono::duration<double>(Clock::now() - t0).count();
+  return material;
 }
 
 }  // namespace hc::material

@@ -27,6 +27,7 @@ Status HeterogeneousFitOptions::validate() const {
   if (!(rbf.tolerance >= 0)) return invalid_argument("rbf.tolerance: must be >= 0");
   if (rbf.max_basis < 1) return invalid_argument("rbf.max_basis: must be >= 1");
   if (threads < 0) return invalid_argument("threads: must be >= 0");
+  HC_RETURN_IF_ERROR(joint.validate());
   return {};
 }
 
@@ -65,7 +66,8 @@ Result<Material> fit_heterogeneous(const Samples& samples, const HeterogeneousFi
       Eigen::VectorXd r;
       HC_RETURN_IF_ERROR(problem.simulate(params[i], &r));
       strains[i] = problem.strains();
-      problems[i].reset();  // frees the FEM and its factorisation
+      // Frees the FEM and its factorisation unless the joint material fit needs it again.
+      if (!options.joint.enabled) problems[i].reset();
       return {};
     };
     Status st = run();
@@ -107,6 +109,22 @@ Result<Material> fit_heterogeneous(const Samples& samples, const HeterogeneousFi
     basis[static_cast<std::size_t>(e)] = rs.basis_size;
   });
   for (const Status& st : rbf_status) HC_RETURN_IF_ERROR(st);
+  const double rbf_time = seconds_since(t1);
+
+  const auto t2 = Clock::now();
+  ParameterFitSummary joint;
+  if (options.joint.enabled) {
+    std::vector<ExampleProblem*> ptrs;
+    for (auto& p : problems) ptrs.push_back(&*p);
+    if (options.progress) options.progress->begin("joint material fit", 1);
+    Result<Material> joint_material =
+        fit_joint_material(ptrs, &strains, params, options.parameters, options.joint, &joint);
+    if (options.progress) options.progress->end("");
+    if (!joint_material.ok()) return joint_material.status().with_context("joint material fit");
+    material = std::move(joint_material).value();
+    std::fill(basis.begin(), basis.end(), 1);
+    problems.clear();
+  }
 
   if (summary) {
     *summary = HeterogeneousFitSummary{};
@@ -122,7 +140,9 @@ Result<Material> fit_heterogeneous(const Samples& samples, const HeterogeneousFi
     for (int x : basis) b += x;
     summary->mean_basis_size = b / static_cast<double>(std::max<Eigen::Index>(t, 1));
     summary->parameter_time_s = parameter_time;
-    summary->rbf_time_s = seconds_since(t1);
+    summary->rbf_time_s = rbf_time;
+    summary->joint_time_s = seconds_since(t2);
+    summary->joint = joint;
     summary->time_s = seconds_since(t0);
     summary->examples = std::move(fits);
   }

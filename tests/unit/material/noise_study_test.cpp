@@ -31,8 +31,36 @@
 //   example's max displacement on every coordinate of every measured node (interior ones too), i.e.
 //   nodes far from the probe get noise far above their displacement; the thesis's "variance of 10
 //   %" may mean noise relative to each displacement, which would be much milder.
-// Result: 0.10 / 3.13 / 3.70 / 4.24 %: the thesis's numbers at 0 % and 30 %, not yet at 10 % and
-// 20 % (2.1 / 3.1 %).
+// Result of the per-example pipeline: 0.10 / 3.13 / 3.70 / 4.24 %.
+// * Where the noisy error really comes from: run the noisy-level settings (γ = 1e-4, basis 3,
+//   prior) on CLEAN data and the error is still 2.86 % (γ 1e-5: 1.96 %, 1e-6: 1.10 %): it is mostly
+//   BIAS of the per-example Laplacian, on ln λ (scaling the ν channel's weight 0.1x..10x changed
+//   nothing). Each example's effective λ field has a real bump under its probe where the material
+//   stiffens, and the weight the noise needs flattens it. (The RBF basis size is not it: 12 gives
+//   2.78 %.)
+// * What worked: fit_joint_material (fit.h; HeterogeneousFitOptions::joint, `fit heterogeneous
+//   --joint`), an extension of the thesis's method: after the per-example fits, ONE material fitted
+//   to all examples at once - per tet λ0, ν and a stiffening k of a one-centre RBF, λ = λ0 (1 + k
+//   ‖ε‖/ε_ref) - with the Laplacian on the material (ln λ0, logit ν, k) rather than on each
+//   example's parameters, weight 0.03 γ summed over the examples, 2 passes of strain updates:
+//   10 % 2.36 %, 20 % 3.51 %, 30 % 4.35 % (seed 2026); noise seed 7: 2.81 / 4.22 / 4.15 %
+//   (per-example pipeline 3.23 / 4.70 / 6.24 %), seed 99: 2.52 / 4.03 / 5.33 % (3.19 / 4.14 /
+//   5.42 %). Better at every noisy level but one (2026 at 30 %: 4.35 vs 4.24 %), still not the
+//   thesis's 2.1 / 3.1 % - nor its 4.4 % at 30 % on every seed. Model bias of the one-centre
+//   stiffening: 1.49 % on clean data at the same γ, 1.06 % at γ → 0 (the reference stiffens
+//   quartically in energy, the RBF kernel is linear in ‖ε‖).
+// * Tried and dropped: (a) keeping the greedy RBF and fitting only a per-tet scale of it (λ and ν)
+//   to all examples: 3.13 -> 2.77 % at 10 % (its noisy shape stays); (b) a Huber (edge-preserving)
+//   loss on the Laplacian rows, per example or joint: much worse (per example 8-20 %: with 576
+//   unknowns and 300 measurements it lets the noise through; joint 2.96-4.2 %); (c) separate
+//   stiffening of λ and α (4 unknowns per tet): 2.58 / 3.85 / 4.53 % (more variance); (d) a weaker
+//   weight on k (0.1x) gives 2.33 / 3.24 / 3.60 % but only when the LM is stopped at 20
+//   iterations per pass; converged it is 2.62 / 3.64 / 3.88 %, so that was early stopping, not
+//   kept; (e) more strain-update passes (4): no change; (f) smaller per-example γ before the joint
+//   fit: worse. Noise-aware weighting (brief idea 2) is already in place: residuals are divided by
+//   each example's s, which is the noise's σ / noise level, i.e. the Gaussian maximum likelihood.
+// * Next candidates: a stiffening kernel closer to the reference (a second centre per tet, or
+//   ‖ε‖² which needs a material format change), γ chosen from the data (GCV / discrepancy).
 #include <gtest/gtest.h>
 
 #include <cstdio>
@@ -82,8 +110,9 @@ void run_noise_study(const double (&bound)[4]) {
     const Samples noisy = add_displacement_noise(*clean, noise[k], 2026);
     HeterogeneousFitOptions options;
     // Noise-free: weak smoothing, rich basis. Noisy: Tikhonov weight growing with the noise
-    // variance (γ = 0.01 σ², σ as a fraction of the max displacement), a small basis, and a weak
-    // prior on Poisson's ratio, which displacement data hardly identify (see fit.h).
+    // variance (γ = 0.01 σ², σ as a fraction of the max displacement), a small basis, a weak
+    // prior on Poisson's ratio, which displacement data hardly identify (see fit.h), and the
+    // joint material fit over all examples (its defaults).
     if (noise[k] == 0) {
       options.parameters.regularization = 1e-8;
       options.rbf.tolerance = 0.02;
@@ -91,6 +120,7 @@ void run_noise_study(const double (&bound)[4]) {
       options.parameters.regularization = kNoisyRegularization * noise[k] * noise[k];
       options.parameters.poisson_prior = kPoissonPrior;
       options.rbf.max_basis = 3;
+      options.joint.enabled = true;
     }
     HeterogeneousFitSummary fs;
     Result<Material> m = fit_heterogeneous(noisy, options, &fs);
@@ -103,16 +133,19 @@ void run_noise_study(const double (&bound)[4]) {
         "%.2f %%\n",
         100 * noise[k], 100 * ev->error_rel_max_disp, 100 * thesis[k], fs.mean_basis_size,
         100 * fs.rms_error_m / clean->max_displacement_m());
+    std::printf("  fit %.1f s (per example %.1f s, joint %.1f s, %d LM iterations)\n", fs.time_s,
+                fs.parameter_time_s, fs.joint_time_s, fs.joint.iterations);
     EXPECT_LE(ev->error_rel_max_disp, bound[k]) << "noise " << noise[k];
   }
 }
 
-// Regression bounds: the thesis's values at 0 % and 30 % noise, what this implementation reaches
-// today at 10 % and 20 % (measured 0.10 %, 3.13 %, 3.70 %, 4.24 %) with a small margin.
-TEST(NoiseStudy, ErrorsWithinMeasuredBounds) { run_noise_study({0.003, 0.035, 0.041, 0.044}); }
+// Regression bounds: what this implementation reaches today (measured 0.10 %, 2.36 %, 3.51 %,
+// 4.35 % with g++ 12 Release) with a ~10 % margin for other compilers' rounding; 0 % at the
+// thesis's value.
+TEST(NoiseStudy, ErrorsWithinMeasuredBounds) { run_noise_study({0.003, 0.026, 0.038, 0.048}); }
 
 // The issue's acceptance criterion (thesis Sec. 4.5: 0.3 %, 2.1 %, 3.1 %, 4.4 %). Still disabled:
-// 0 % and 30 % pass, 10 % and 20 % do not (3.13 %, 3.70 %; see the top of this file); run with
+// 0 % and 30 % pass, 10 % and 20 % do not (2.36 %, 3.51 %; see the top of this file); run with
 // --gtest_also_run_disabled_tests.
 TEST(NoiseStudy, DISABLED_ErrorsNoWorseThanTheThesis) {
   run_noise_study({0.003, 0.021, 0.031, 0.044});
