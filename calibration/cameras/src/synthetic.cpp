@@ -111,6 +111,7 @@ std::vector<Eigen::Isometry3d> random_board_poses(const std::vector<CameraModel>
 std::vector<Eigen::Isometry3d> random_board_poses(const std::vector<CameraModel>& rig,
                                                   const BoardSpec& board,
                                                   const BoardPoseOptions& o) {
+  if (rig.empty()) return {};
   std::mt19937 rng(o.seed);
   std::uniform_real_distribution<double> u(-1.0, 1.0);
   const Eigen::Vector3d look = rig_look_at(rig);

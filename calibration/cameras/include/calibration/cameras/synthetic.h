@@ -89,6 +89,7 @@ struct CentreErrors {
   double raw_m = 0.0;
   // Worst error after the best rigid alignment of all recovered centres onto the true ones
   // (Umeyama, no scale: the board fixes the scale): the gauge-free error of the rig's shape.
+  // With fewer than 3 cameras no alignment is made (aligned = raw).
   double aligned_m = 0.0;
   // The aligned error split along each true optical axis (depth, tied to the focal length) and
   // across it; worst over the cameras.
