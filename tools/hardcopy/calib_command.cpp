@@ -136,6 +136,8 @@ int run_cameras(const GlobalOptions& global, const CamerasArgs& a) {
              {"board_poses", s->board_poses},
              {"observations", s->observations},
              {"iterations", s->iterations},
+             {"converged", s->converged},
+             {"termination", s->termination},
              {"images", stats.images},
              {"boards_found", stats.boards_found},
              {"detect_time_s", stats.detect_time_s},
@@ -153,6 +155,7 @@ int run_cameras(const GlobalOptions& global, const CamerasArgs& a) {
                  m.name, s->cameras[i].rms_px, m.fx, m.fy, m.cx, m.cy, 1e3 * m.t_m.norm());
     }
     if (rig) fmt::print("  joint rms {:.4f} px\n", s->joint_rms_px);
+    if (!s->converged) fmt::print("  not converged: {}\n", s->termination);
     for (const calib::ViewReport& v : s->outliers())
       fmt::print("  outlier view: camera {} view {} rms {:.3f} px\n", v.camera, v.view, v.rms_px);
     fmt::print("  {:.2f} s (detection {:.2f} s)\n", time_s, stats.detect_time_s);

@@ -44,6 +44,7 @@ TEST(CalibCli, StereoImagesJson) {
   }
   // OpenCV 4.6 stereo_calib: 0.634183 px (reference_runs_opencv460/stereo_calib.out.txt).
   EXPECT_LE(j["joint_rms_px"].get<double>(), 0.634183);
+  EXPECT_TRUE(j["converged"].get<bool>()) << j["termination"];
   const std::vector<double> t = j["cameras"]["right"]["t_m"];
   EXPECT_NEAR(std::hypot(t[0], t[1], t[2]), 3.343 * 0.025, 0.005 * 3.343 * 0.025);
   EXPECT_EQ(j["cameras"]["left"]["t_m"], nlohmann::json({0.0, 0.0, 0.0}));
