@@ -4,6 +4,7 @@
 #include <tbb/global_control.h>
 #include <tbb/parallel_for.h>
 
+#include <algorithm>
 #include <atomic>
 #include <chrono>
 #include <cmath>
@@ -38,6 +39,21 @@ Result<Material> fit_heterogeneous(const Samples& samples, const HeterogeneousFi
   const auto t0 = Clock::now();
   const std::size_t n = samples.examples.size();
   const Eigen::Index t = samples.mesh.num_tets();
+  if (options.joint.enabled) {
+    // Fail before the per-example fits when the joint fit's Jacobian would be too large.
+    double rows = 0;
+    for (const Example& ex : samples.examples)
+      for (std::size_t k = 0; k < ex.visible.size(); ++k)
+        if (ex.visible[k] &&
+            !std::binary_search(ex.fixed_nodes.begin(), ex.fixed_nodes.end(), static_cast<int>(k)))
+          rows += 3;
+    const double bytes = 8.0 * rows * 3.0 * static_cast<double>(t);
+    if (bytes > options.joint.max_jacobian_bytes)
+      return failed_precondition(fmt::format(
+          "joint material fit: its Jacobian would take {:.1f} GB (limit {:.1f} GB); use fewer "
+          "examples or the per-example pipeline",
+          bytes / 1e9, options.joint.max_jacobian_bytes / 1e9));
+  }
 
   std::vector<std::optional<ExampleProblem>> problems(n);
   std::vector<std::vector<LambdaAlpha>> params(n);

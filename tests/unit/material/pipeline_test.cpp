@@ -75,5 +75,33 @@ TEST(Pipeline, FitsAndReproducesNoiseFreeExamples) {
   EXPECT_LT(ev->error_rel_max_disp, 0.003);
 }
 
+// The joint material fit (fit.h) on noise-free examples of the stiffening reference: one material
+// fitted to all examples reproduces them by incremental loading (measured 0.22 % of the max
+// displacement with g++ 12 Release; bound 0.5 %).
+TEST(Pipeline, JointMaterialFitReproducesNoiseFreeExamples) {
+  StiffeningReference ref;
+  Result<Samples> samples = synthesize_samples(ref.mesh, ref.simulator(), ref.synth_options(6, 0));
+  ASSERT_TRUE(samples.ok()) << samples.status().to_string();
+  HeterogeneousFitOptions options;
+  options.parameters.regularization = 1e-6;
+  options.joint.enabled = true;
+  HeterogeneousFitSummary summary;
+  Result<Material> m = fit_heterogeneous(*samples, options, &summary);
+  ASSERT_TRUE(m.ok()) << m.status().to_string();
+  EXPECT_DOUBLE_EQ(summary.mean_basis_size, 1.0);  // one centre (zero strain) per tet
+  EXPECT_GT(summary.joint.iterations, 0);
+  Result<EvaluateSummary> ev = evaluate_material(RbfMaterial(*m), *samples, {});
+  ASSERT_TRUE(ev.ok()) << ev.status().to_string();
+  std::printf("joint fit: error %.3f %% of max displacement\n", 100 * ev->error_rel_max_disp);
+  EXPECT_LT(ev->error_rel_max_disp, 0.005);
+
+  // Too large for the dense joint Jacobian: refused before any fitting.
+  options.joint.max_jacobian_bytes = 1e3;
+  Result<Material> big = fit_heterogeneous(*samples, options);
+  ASSERT_FALSE(big.ok());
+  EXPECT_EQ(big.status().code(), StatusCode::kFailedPrecondition);
+  EXPECT_NE(big.status().to_string().find("Jacobian"), std::string::npos);
+}
+
 }  // namespace
 }  // namespace hc::material

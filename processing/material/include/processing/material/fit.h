@@ -165,6 +165,10 @@ struct JointRefinementOptions {
   double stiffening_regularization_scale = 1.0;
   int max_iterations = 30;  // LM iterations per pass
   int passes = 2;           // (strains under the current material, LM) rounds
+  // The LM stores the stacked Jacobian densely (all measurements × 3T, 8 bytes each) and keeps
+  // every example's FEM factorisation: fine for the noise study's size (2,700 × 864), not for the
+  // thesis-scale foam (48 × ~4,000 × 5,400: 8 GB). Larger problems fail with kFailedPrecondition.
+  double max_jacobian_bytes = 2e9;
   Status validate() const;
 };
 
