@@ -185,6 +185,7 @@ struct FitArgs {
   int threads = 0;
   bool joint = false;
   double joint_regularization = material::JointRefinementOptions{}.regularization_scale;
+  bool joint_linear = false;
 };
 
 int run_fit(const GlobalOptions& global, const FitArgs& args) {
@@ -202,6 +203,7 @@ int run_fit(const GlobalOptions& global, const FitArgs& args) {
   options.threads = args.threads;
   options.joint.enabled = args.joint;
   options.joint.regularization_scale = args.joint_regularization;
+  options.joint.quadratic_stiffening = !args.joint_linear;
   options.progress = ctx.progress();
   if (Status s = options.validate(); !s.ok()) return ctx.fail(kName, s);
   material::HeterogeneousFitSummary summary;
@@ -342,9 +344,11 @@ void add_material_commands(CLI::App& app, const GlobalOptions& global, int* exit
       ->check(CLI::NonNegativeNumber);
   h->add_flag("--joint", fa->joint,
               "For noisy data: after the per-example fits, fit one material (per tet base "
-              "stiffness, Poisson's ratio and a strain stiffening) to ALL examples at once, "
-              "smoothing the material instead of each example's parameters (an extension of the "
-              "thesis's method; the material has one RBF centre per tet)");
+              "stiffness, Poisson's ratio, a linear and a quadratic-like strain stiffening) to ALL "
+              "examples at once, smoothing the material instead of each example's parameters (an "
+              "extension of the thesis's method; the material has 13 RBF centres per tet)");
+  h->add_flag("--joint-linear", fa->joint_linear,
+              "With --joint: the linear strain stiffening only (one RBF centre per tet)");
   h->add_option("--joint-regularization", fa->joint_regularization,
                 "With --joint: its Laplacian weight relative to --regularization")
       ->check(CLI::NonNegativeNumber)

@@ -529,6 +529,7 @@ Status JointRefinementOptions::validate() const {
   if (!(stiffening_regularization_scale >= 0) || !std::isfinite(stiffening_regularization_scale))
     return invalid_argument("joint.stiffening_regularization_scale: must be >= 0");
   if (passes < 1) return invalid_argument("joint.passes: must be >= 1");
+  if (!(function_tolerance >= 0)) return invalid_argument("joint.function_tolerance: must be >= 0");
   if (!(max_jacobian_bytes > 0)) return invalid_argument("joint.max_jacobian_bytes: must be > 0");
   return {};
 }
@@ -556,31 +557,59 @@ Result<Material> fit_joint_material(const std::vector<ExampleProblem*>& problems
   // The strain-dependent factor is kept above this (λ > 0 for any k).
   constexpr double kMinFactor = 0.5;  // see fit.h
 
+  // Parameters per tet: (ln λ0, logit(ν/ν_max), k[, m]).
+  const Eigen::Index np = options.quadratic_stiffening ? 4 : 3;
   // Start: per element the geometric mean λ and the mean logit ν of the per-example estimates.
-  Eigen::VectorXd x = Eigen::VectorXd::Zero(3 * t);  // (ln λ0, logit(ν/ν_max), k ε_ref) per tet
+  Eigen::VectorXd x = Eigen::VectorXd::Zero(np * t);
   for (Eigen::Index e = 0; e < t; ++e) {
     for (std::size_t i = 0; i < n; ++i) {
       const Eigen::Vector2d q = rp.to_q(start[i][static_cast<std::size_t>(e)]);
-      x(3 * e) += q(0) / static_cast<double>(n);
-      x(3 * e + 1) += q(1) / static_cast<double>(n);
+      x(np * e) += q(0) / static_cast<double>(n);
+      x(np * e + 1) += q(1) / static_cast<double>(n);
     }
   }
-  std::vector<Eigen::VectorXd> r_norm(n, Eigen::VectorXd(t));
-  const auto update_norms = [&]() {
-    for (std::size_t i = 0; i < n; ++i)
-      for (Eigen::Index e = 0; e < t; ++e) r_norm[i](e) = (*strains)[i].row(e).norm();
-  };
-  update_norms();
   double eps_ref = 0;
-  for (std::size_t i = 0; i < n; ++i) eps_ref = std::max(eps_ref, r_norm[i].maxCoeff());
+  for (std::size_t i = 0; i < n; ++i)
+    if ((*strains)[i].rows() > 0)
+      eps_ref = std::max(eps_ref, (*strains)[i].rowwise().norm().maxCoeff());
   if (!(eps_ref > 0)) eps_ref = 1;
+  // The quadratic feature h(ε) = (Σ_k ‖ε − c e_k‖ + ‖ε + c e_k‖ − 12 c) / (5 ε_ref), c = ε_ref,
+  // e_k the 6 unit strain axes: ≈ ‖ε‖² / ε_ref² for ‖ε‖ ≪ c in every direction (the 12 terms'
+  // second-order parts sum to 5 ‖ε‖² / c), ≈ 2.4 ‖ε‖ / ε_ref − 2.4 for ‖ε‖ ≫ c.
+  const double c_quad = eps_ref;
+  const auto quad_feature = [&](const Vector6d& eps) {
+    double g = 0;
+    for (int k = 0; k < 6; ++k) {
+      Vector6d d = eps;
+      d(k) -= c_quad;
+      g += d.norm();
+      d(k) += 2 * c_quad;
+      g += d.norm();
+    }
+    return (g - 12 * c_quad) / (5 * eps_ref);
+  };
+  std::vector<Eigen::VectorXd> r_norm(n, Eigen::VectorXd(t)), h_quad(n, Eigen::VectorXd(t));
+  const auto update_features = [&](std::size_t i) {
+    for (Eigen::Index e = 0; e < t; ++e) {
+      const Vector6d eps = (*strains)[i].row(e).transpose();
+      r_norm[i](e) = eps.norm() / eps_ref;
+      h_quad[i](e) = quad_feature(eps);
+    }
+  };
+  for (std::size_t i = 0; i < n; ++i) update_features(i);
+  // The unfloored strain factor 1 + k ‖ε‖/ε_ref [+ m h(ε)].
+  const auto raw_factor = [&](const Eigen::VectorXd& v, std::size_t i, Eigen::Index e) {
+    double f = 1.0 + v(np * e + 2) * r_norm[i](e);
+    if (np == 4) f += v(np * e + 3) * h_quad[i](e);
+    return f;
+  };
 
   const auto params_at = [&](const Eigen::VectorXd& v, std::size_t i, std::vector<LambdaAlpha>* p) {
     p->resize(static_cast<std::size_t>(t));
     for (Eigen::Index e = 0; e < t; ++e) {
-      const double factor = std::max(1.0 + v(3 * e + 2) * r_norm[i](e) / eps_ref, kMinFactor);
-      const double l = std::exp(v(3 * e)) * factor;
-      (*p)[static_cast<std::size_t>(e)] = {l, l * nu_max * sigmoid(v(3 * e + 1))};
+      const double factor = std::max(raw_factor(v, i, e), kMinFactor);
+      const double l = std::exp(v(np * e)) * factor;
+      (*p)[static_cast<std::size_t>(e)] = {l, l * nu_max * sigmoid(v(np * e + 1))};
     }
   };
   Eigen::Index rows = 0;
@@ -591,7 +620,7 @@ Result<Material> fit_joint_material(const std::vector<ExampleProblem*>& problems
   }
   // The stacked Jacobian is dense (rows × 3T); refuse what would not fit in memory rather than
   // fail in the allocator (the thesis-scale foam, 48 examples on 1,805 tets, would need ~8 GB).
-  const double jacobian_bytes = 8.0 * static_cast<double>(rows) * static_cast<double>(3 * t);
+  const double jacobian_bytes = 8.0 * static_cast<double>(rows) * static_cast<double>(np * t);
   if (jacobian_bytes > options.max_jacobian_bytes)
     return failed_precondition(fmt::format(
         "fit_joint_material: the joint Jacobian would take {:.1f} GB (limit {:.1f} GB); use "
@@ -612,7 +641,7 @@ Result<Material> fit_joint_material(const std::vector<ExampleProblem*>& problems
     return {};
   };
   lm.jacobian = [&](const Eigen::VectorXd& v, Eigen::MatrixXd* j) -> Status {
-    j->resize(rows, 3 * t);
+    j->resize(rows, np * t);
     std::vector<Status> st(n);
     tbb::parallel_for(std::size_t{0}, n, [&](std::size_t i) {
       Eigen::MatrixXd ji;
@@ -621,19 +650,21 @@ Result<Material> fit_joint_material(const std::vector<ExampleProblem*>& problems
       ji /= problems[i]->scale_m();
       auto out = j->middleRows(offset[i], ji.rows());
       for (Eigen::Index e = 0; e < t; ++e) {
-        const double raw = 1.0 + v(3 * e + 2) * r_norm[i](e) / eps_ref;
+        const double raw = raw_factor(v, i, e);
         const double factor = std::max(raw, kMinFactor);
-        const double l0 = std::exp(v(3 * e));
-        const double sg = sigmoid(v(3 * e + 1));
+        const double l0 = std::exp(v(np * e));
+        const double sg = sigmoid(v(np * e + 1));
         const double nu = nu_max * sg;
         const double l = l0 * factor;
         const auto dl = ji.col(2 * e), da = ji.col(2 * e + 1);
-        out.col(3 * e) = l * (dl + nu * da);
-        out.col(3 * e + 1) = l * nu_max * sg * (1 - sg) * da;
-        if (raw > kMinFactor)
-          out.col(3 * e + 2) = l0 * r_norm[i](e) / eps_ref * (dl + nu * da);
-        else
-          out.col(3 * e + 2).setZero();
+        out.col(np * e) = l * (dl + nu * da);
+        out.col(np * e + 1) = l * nu_max * sg * (1 - sg) * da;
+        if (raw > kMinFactor) {
+          out.col(np * e + 2) = l0 * r_norm[i](e) * (dl + nu * da);
+          if (np == 4) out.col(np * e + 3) = l0 * h_quad[i](e) * (dl + nu * da);
+        } else {
+          out.middleCols(np * e + 2, np - 2).setZero();
+        }
       }
     });
     for (const Status& s : st) HC_RETURN_IF_ERROR(s);
@@ -650,27 +681,29 @@ Result<Material> fit_joint_material(const std::vector<ExampleProblem*>& problems
   if (gamma > 0) {
     for (Eigen::Index k = 0; k < laplacian.outerSize(); ++k)
       for (Eigen::SparseMatrix<double>::InnerIterator it(laplacian, k); it; ++it)
-        for (int c = 0; c < 3; ++c)
-          trip.emplace_back(static_cast<int>(3 * it.row() + c), static_cast<int>(3 * it.col() + c),
-                            sg * it.value() * (c == 2 ? k_weight : 1.0));
-    reg_rows = 3 * t;
+        for (Eigen::Index c = 0; c < np; ++c)
+          trip.emplace_back(static_cast<int>(np * it.row() + c),
+                            static_cast<int>(np * it.col() + c),
+                            sg * it.value() * (c >= 2 ? k_weight : 1.0));
+    reg_rows = np * t;
     target.assign(static_cast<std::size_t>(reg_rows), 0.0);
   }
   if (parameters.poisson_prior > 0) {
     const double w = std::sqrt(parameters.poisson_prior * static_cast<double>(n));
     const double q1 = rp.to_q({1.0, parameters.initial_poisson})(1);
     for (Eigen::Index e = 0; e < t; ++e) {
-      trip.emplace_back(static_cast<int>(reg_rows + e), static_cast<int>(3 * e + 1), w);
+      trip.emplace_back(static_cast<int>(reg_rows + e), static_cast<int>(np * e + 1), w);
       target.push_back(w * q1);
     }
     reg_rows += t;
   }
-  lm.reg.resize(reg_rows, 3 * t);
+  lm.reg.resize(reg_rows, np * t);
   lm.reg.setFromTriplets(trip.begin(), trip.end());
   lm.reg_target =
       Eigen::Map<const Eigen::VectorXd>(target.data(), static_cast<Eigen::Index>(target.size()));
   ParameterFitOptions lm_options = parameters;
   lm_options.max_iterations = options.max_iterations;
+  lm_options.function_tolerance = options.function_tolerance;
   ParameterFitSummary local;
   ParameterFitSummary* s = summary ? summary : &local;
   int iterations = 0;
@@ -684,9 +717,9 @@ Result<Material> fit_joint_material(const std::vector<ExampleProblem*>& problems
           params_at(x, i, &p);
           Eigen::VectorXd r;
           st[i] = problems[i]->simulate(p, &r);
-          if (st[i].ok()) (*strains)[i] = problems[i]->strains();
-          for (Eigen::Index e = 0; e < t && st[i].ok(); ++e)
-            r_norm[i](e) = (*strains)[i].row(e).norm();
+          if (!st[i].ok()) break;
+          (*strains)[i] = problems[i]->strains();
+          update_features(i);
         }
       });
       for (const Status& e : st) HC_RETURN_IF_ERROR(e);
@@ -702,13 +735,27 @@ Result<Material> fit_joint_material(const std::vector<ExampleProblem*>& problems
   material.rbfs.resize(static_cast<std::size_t>(t));
   for (Eigen::Index e = 0; e < t; ++e) {
     StrainRbf& rbf = material.rbfs[static_cast<std::size_t>(e)];
-    const double l0 = std::exp(x(3 * e));
-    const double nu = nu_max * sigmoid(x(3 * e + 1));
-    const double w = l0 * x(3 * e + 2) / eps_ref;
+    const double l0 = std::exp(x(np * e));
+    const double nu = nu_max * sigmoid(x(np * e + 1));
+    const double w = l0 * x(np * e + 2) / eps_ref;
     rbf.centres = {Vector6d::Zero()};
-    rbf.weights.resize(1, 2);
-    rbf.weights << w, nu * w;
-    rbf.constant = Eigen::Vector2d(l0, nu * l0);
+    rbf.weights.resize(np == 4 ? 13 : 1, 2);
+    rbf.weights.row(0) << w, nu * w;
+    double constant = l0;
+    if (np == 4) {
+      // m h(ε) as 12 more centres ±c e_k with equal weights m l0 / (5 ε_ref).
+      const double m = x(np * e + 3);
+      const double wq = l0 * m / (5 * eps_ref);
+      for (int k = 0; k < 6; ++k)
+        for (const double sign : {-1.0, 1.0}) {
+          Vector6d centre = Vector6d::Zero();
+          centre(k) = sign * c_quad;
+          rbf.centres.push_back(centre);
+          rbf.weights.row(static_cast<Eigen::Index>(rbf.centres.size()) - 1) << wq, nu * wq;
+        }
+      constant -= 12 * c_quad * wq;
+    }
+    rbf.constant = Eigen::Vector2d(constant, nu * constant);
     rbf.lambda_floor_pa = kMinFactor * l0;
     rbf.max_poisson = nu_max;
   }

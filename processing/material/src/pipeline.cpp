@@ -47,7 +47,8 @@ Result<Material> fit_heterogeneous(const Samples& samples, const HeterogeneousFi
         if (ex.visible[k] &&
             !std::binary_search(ex.fixed_nodes.begin(), ex.fixed_nodes.end(), static_cast<int>(k)))
           rows += 3;
-    const double bytes = 8.0 * rows * 3.0 * static_cast<double>(t);
+    const double bytes =
+        8.0 * rows * (options.joint.quadratic_stiffening ? 4.0 : 3.0) * static_cast<double>(t);
     if (bytes > options.joint.max_jacobian_bytes)
       return failed_precondition(fmt::format(
           "joint material fit: its Jacobian would take {:.1f} GB (limit {:.1f} GB); use fewer "
@@ -138,7 +139,9 @@ Result<Material> fit_heterogeneous(const Samples& samples, const HeterogeneousFi
     if (options.progress) options.progress->end("");
     if (!joint_material.ok()) return joint_material.status().with_context("joint material fit");
     material = std::move(joint_material).value();
-    std::fill(basis.begin(), basis.end(), 1);
+    for (Eigen::Index e = 0; e < t; ++e)
+      basis[static_cast<std::size_t>(e)] =
+          static_cast<int>(material.rbfs[static_cast<std::size_t>(e)].size());
     problems.clear();
   }
 

@@ -45,14 +45,20 @@ TEST(MaterialCli, SynthFitEvaluateRoundTrip) {
   // Noise-free examples of a neo-Hookean block: reproduced within 1 % of the max displacement.
   EXPECT_LT(ej["error_rel_max_disp"].get<double>(), 0.01);
 
-  // --joint (one material fitted to all examples at once, one RBF centre per tet): the same
+  // --joint (one material fitted to all examples at once, 13 RBF centres per tet: zero strain
+  // and the quadratic-like stiffening's ±c e_k, fit.h): the same
   // homogeneous block, also within 1 %.
   CliRun jf = hardcopy("fit heterogeneous --samples " + d + "/s.json -o " + d +
                        "/mj.json --regularization 1e-6 --joint --json");
   ASSERT_EQ(jf.exit_code, 0) << jf.out;
   const auto jj = nlohmann::json::parse(jf.out);
   EXPECT_EQ(jj["joint"], true);
-  EXPECT_EQ(jj["mean_basis_size"], 1.0);
+  EXPECT_EQ(jj["mean_basis_size"], 13.0);
+  // --joint-linear: the linear stiffening only, one centre (zero strain) per tet.
+  CliRun jl = hardcopy("fit heterogeneous --samples " + d + "/s.json -o " + d +
+                       "/ml.json --regularization 1e-6 --joint --joint-linear --json");
+  ASSERT_EQ(jl.exit_code, 0) << jl.out;
+  EXPECT_EQ(nlohmann::json::parse(jl.out)["mean_basis_size"], 1.0);
   CliRun je = hardcopy("evaluate --material " + d + "/mj.json --samples " + d + "/s.json --json");
   ASSERT_EQ(je.exit_code, 0) << je.out;
   EXPECT_LT(nlohmann::json::parse(je.out)["error_rel_max_disp"].get<double>(), 0.01);

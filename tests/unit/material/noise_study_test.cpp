@@ -61,10 +61,21 @@
 //   2.63 / 3.56 / 3.96 % (seed 2026), seeds 7 and 99 likewise no better overall. Noise-aware
 //   weighting (brief idea 2) is already in place: residuals are divided by each example's s, which
 //   is the noise's σ / noise level, i.e. the Gaussian maximum likelihood.
-// * Next candidates: a stiffening kernel closer to the reference (a second centre per tet, or
-//   ‖ε‖² which needs a material format change), γ chosen from the data (GCV / discrepancy).
+// * Quadratic-like stiffening (JointRefinementOptions::quadratic_stiffening, default on): a 4th
+//   parameter m per tet, λ = λ0 (1 + k ‖ε‖/ε_ref + m h(ε)) with h ≈ ‖ε‖²/ε_ref² built from 12 more
+//   RBF centres ±ε_ref e_k (fit.h), same format. Model bias on CLEAN data at γ_J → 0 (1e-5 x):
+//   1.03-1.08 % -> 0.85-0.96 %; at the noisy levels' γ: 1.78 / 2.39 / 2.85 % -> 1.54 / 2.23 /
+//   2.72 %. Noise study (joint LM function tolerance 1e-5, which leaves the errors within 0.02 %
+//   of the converged ones): seed 2026 2.36 / 3.32 / 3.91 %, seed 7 2.60 / 4.17 / 4.17 %, seed 99
+//   2.38 / 4.06 / 5.28 % (linear k only: 2.36 / 3.51 / 4.35, 2.81 / 4.22 / 4.15, 2.52 / 4.03 /
+//   5.33 %): mean of the 9 noisy cells 3.70 -> 3.58 %, two cells +0.02 / +0.03 %. κ 0.3x / 3x and
+//   γ_J 0.015 (instead of 0.03) x γ: no better. 10 % stays at ~2.4 %: at that level even clean
+//   data give 1.54 %, i.e. the smoothing the noise needs, not the model, now dominates.
+// * Next candidates: γ chosen from the data (GCV / discrepancy), a per-layer (edge-preserving)
+//   smoothing that keeps the 150/60/30 kPa jumps.
 #include <gtest/gtest.h>
 
+#include <cstdint>
 #include <cstdio>
 #include <cstdlib>
 
@@ -109,7 +120,10 @@ void run_noise_study(const double (&bound)[4]) {
   const double noise[] = {0.0, 0.1, 0.2, 0.3};
   const double thesis[] = {0.003, 0.021, 0.031, 0.044};
   for (int k = 0; k < 4; ++k) {
-    const Samples noisy = add_displacement_noise(*clean, noise[k], 2026);
+    // HC_NOISE_SEED overrides the noise stream's seed (for the other-seed checks; default 2026).
+    const char* seed_env = std::getenv("HC_NOISE_SEED");
+    const std::uint64_t seed = seed_env ? std::strtoull(seed_env, nullptr, 10) : 2026;
+    const Samples noisy = add_displacement_noise(*clean, noise[k], seed);
     HeterogeneousFitOptions options;
     // Noise-free: weak smoothing, rich basis. Noisy: Tikhonov weight growing with the noise
     // variance (γ = 0.01 σ², σ as a fraction of the max displacement), a small basis, a weak
@@ -141,13 +155,13 @@ void run_noise_study(const double (&bound)[4]) {
   }
 }
 
-// Regression bounds: what this implementation reaches today (measured 0.10 %, 2.36 %, 3.51 %,
-// 4.35 % with g++ 12 Release) with a ~10 % margin for other compilers' rounding; 0 % at the
+// Regression bounds: what this implementation reaches today (measured 0.10 %, 2.36 %, 3.32 %,
+// 3.91 % with g++ 12 Release) with a ~10 % margin for other compilers' rounding; 0 % at the
 // thesis's value.
-TEST(NoiseStudy, ErrorsWithinMeasuredBounds) { run_noise_study({0.003, 0.026, 0.038, 0.048}); }
+TEST(NoiseStudy, ErrorsWithinMeasuredBounds) { run_noise_study({0.003, 0.026, 0.037, 0.043}); }
 
 // The acceptance criterion (thesis Sec. 4.5: 0.3 %, 2.1 %, 3.1 %, 4.4 %). Still disabled:
-// 0 % and 30 % pass, 10 % and 20 % do not (2.36 %, 3.51 %; see the top of this file); run with
+// 0 % and 30 % pass, 10 % and 20 % do not (2.36 %, 3.32 %; see the top of this file); run with
 // --gtest_also_run_disabled_tests.
 TEST(NoiseStudy, DISABLED_ErrorsNoWorseThanTheThesis) {
   run_noise_study({0.003, 0.021, 0.031, 0.044});

@@ -88,7 +88,7 @@ TEST(Pipeline, JointMaterialFitReproducesNoiseFreeExamples) {
   HeterogeneousFitSummary summary;
   Result<Material> m = fit_heterogeneous(*samples, options, &summary);
   ASSERT_TRUE(m.ok()) << m.status().to_string();
-  EXPECT_DOUBLE_EQ(summary.mean_basis_size, 1.0);  // one centre (zero strain) per tet
+  EXPECT_DOUBLE_EQ(summary.mean_basis_size, 13.0);  // zero strain and ±c e_k per tet
   EXPECT_GT(summary.joint.iterations, 0);
   Result<EvaluateSummary> ev = evaluate_material(RbfMaterial(*m), *samples, {});
   ASSERT_TRUE(ev.ok()) << ev.status().to_string();
