@@ -69,8 +69,9 @@
 //   of the converged ones): seed 2026 2.36 / 3.32 / 3.91 %, seed 7 2.60 / 4.17 / 4.17 %, seed 99
 //   2.38 / 4.06 / 5.28 % (linear k only: 2.36 / 3.51 / 4.35, 2.81 / 4.22 / 4.15, 2.52 / 4.03 /
 //   5.33 %): mean of the 9 noisy cells 3.70 -> 3.58 %, two cells +0.02 / +0.03 %. κ 0.3x / 3x and
-//   γ_J 0.015 (instead of 0.03) x γ: no better. 10 % stays at ~2.4 %: at that level even clean
-//   data give 1.54 %, i.e. the smoothing the noise needs, not the model, now dominates.
+//   γ_J 0.015 / 0.05 (instead of 0.03) x γ, 1 or 3 strain passes (instead of 2): no better. 10 %
+//   stays at ~2.4 %: at that level even clean data give 1.54 %, i.e. the smoothing the noise needs,
+//   not the model, now dominates.
 // * Next candidates: γ chosen from the data (GCV / discrepancy), a per-layer (edge-preserving)
 //   smoothing that keeps the 150/60/30 kPa jumps.
 #include <gtest/gtest.h>
