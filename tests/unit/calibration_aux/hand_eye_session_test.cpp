@@ -9,12 +9,9 @@
 #include "cli_run.h"
 #include "common/file_io.h"
 #include "common/json.h"
-#include "rig_daemon/daemon/daemon.h"
 #include "rig_daemon/daemon/plan.h"
 #include "rig_daemon/daemon/rig_config.h"
-#include "rig_daemon/daemon/session_layout.h"
-#include "rig_daemon/devices/clock.h"
-#include "rig_daemon/recording/mcap_reader.h"
+#include "sim_session.h"
 #include "test_data.h"
 
 namespace hc::calib {
@@ -41,69 +38,20 @@ trigger_device: trigger
 trigger: {rate_hz: 100, pulse_width_s: 0.001}
 )";
 
-// The rig calibration of the simulated cameras, in cam0's frame, from the session's truth.
-Result<RigCalibration> true_rig(const std::filesystem::path& session) {
-  HC_ASSIGN_OR_RETURN(recording::McapReader reader, recording::McapReader::open(session));
-  HC_ASSIGN_OR_RETURN(std::vector<recording::Metadata> md, reader.read_metadata());
-  for (const recording::Metadata& m : md) {
-    if (m.name != rig::kMetadataSimCameras) continue;
-    HC_ASSIGN_OR_RETURN(Json j, parse_json(m.metadata.at("json"), "sim_cameras"));
-    RigCalibration rig;
-    Eigen::Isometry3d cam0_from_world = Eigen::Isometry3d::Identity();
-    for (const char* name : {"cam0", "cam1", "cam2", "cam3", "cam4", "cam5", "cam6"}) {
-      if (!j.contains(name)) continue;  // not a camera of the session
-      const Json& c = j.at(name);
-      Eigen::Isometry3d cam_from_world = Eigen::Isometry3d::Identity();
-      for (int a = 0; a < 3; ++a) {
-        cam_from_world.translation()[a] = c["t_m"][static_cast<std::size_t>(a)].get<double>();
-        for (int b = 0; b < 3; ++b)
-          cam_from_world.linear()(a, b) =
-              c["R"][static_cast<std::size_t>(a)][static_cast<std::size_t>(b)].get<double>();
-      }
-      if (rig.cameras.empty()) cam0_from_world = cam_from_world;
-      const Eigen::Isometry3d cam_from_rig = cam_from_world * cam0_from_world.inverse();
-      CameraModel cm;
-      cm.name = name;
-      cm.width = c["width"].get<int>();
-      cm.height = c["height"].get<int>();
-      cm.fx = c["fx"].get<double>();
-      cm.fy = c["fy"].get<double>();
-      cm.cx = c["cx"].get<double>();
-      cm.cy = c["cy"].get<double>();
-      cm.distortion = c["distortion"].get<std::vector<double>>();
-      cm.R = cam_from_rig.linear();
-      cm.t_m = cam_from_rig.translation();
-      rig.cameras.push_back(cm);
-    }
-    return rig;
-  }
-  return not_found("no sim_cameras metadata");
-}
-
 TEST(HandEyeSession, SimulatedAutomatedSessionRecoversCam0Pose) {
   ScratchDir dir;
   Result<rig::RigConfig> cfg = rig::parse_rig_config(rig::kEmbeddedDefaultRigConfig, "rig.yaml");
   ASSERT_TRUE(cfg.ok()) << cfg.status().to_string();
-  cfg->sessions_dir = dir.path();
-  rig::Daemon::Options o;
-  o.config = *cfg;
-  o.clock = std::make_shared<devices::SimulatedClock>(1'000'000'000);
-  o.software_version = "test";
-  Result<std::unique_ptr<rig::Daemon>> d = rig::Daemon::create(o);
-  ASSERT_TRUE(d.ok()) << d.status().to_string();
   Result<rig::Plan> plan = rig::parse_plan(kPlan, "hand_eye.yaml");
   ASSERT_TRUE(plan.ok()) << plan.status().to_string();
-  Result<Json> started = (*d)->start(*plan);
-  ASSERT_TRUE(started.ok()) << started.status().to_string();
-  ASSERT_TRUE((*d)->wait_idle(300000));
-  const Json summary = (*d)->last_summary();
-  ASSERT_EQ(summary["state"], "finished") << summary.dump(2);
-  const std::filesystem::path session = summary["session"].get<std::string>();
+  Result<std::filesystem::path> session =
+      hc::testing::record_simulated_session(*cfg, *plan, dir.path());
+  ASSERT_TRUE(session.ok()) << session.status().to_string();
 
-  Result<RigCalibration> rig = true_rig(session);
+  Result<RigCalibration> rig = hc::testing::true_rig_of_session(*session);
   ASSERT_TRUE(rig.ok()) << rig.status().to_string();
   HandEyeSessionOptions ho;
-  Result<HandEyeSessionResult> r = calibrate_hand_eye_from_session(session, *rig, ho);
+  Result<HandEyeSessionResult> r = calibrate_hand_eye_from_session(*session, *rig, ho);
   ASSERT_TRUE(r.ok()) << r.status().to_string();
   RecordProperty("result", r->to_json().dump());
   EXPECT_GT(r->steps_used, r->steps / 2);
@@ -119,7 +67,7 @@ TEST(HandEyeSession, SimulatedAutomatedSessionRecoversCam0Pose) {
 
   // The CLI writes the calibration with world_from_rig set, and --json carries the truth errors.
   ASSERT_TRUE(write_rig_calibration(dir / "rig.yml", *rig).ok());
-  const auto cli = hc::testing::hardcopy("calib hand-eye " + session.string() + " --calib " +
+  const auto cli = hc::testing::hardcopy("calib hand-eye " + session->string() + " --calib " +
                                          (dir / "rig.yml").string() + " -o " +
                                          (dir / "out.yml").string() + " --json");
   ASSERT_EQ(cli.exit_code, 0) << cli.out;
@@ -165,13 +113,6 @@ TEST(HandEyeSession, LargeShaftMarkersSetApartByTheTrackerAreUsed) {
   ScratchDir dir;
   Result<rig::RigConfig> cfg = rig::parse_rig_config(kHalfHiresRig, "rig.yaml");
   ASSERT_TRUE(cfg.ok()) << cfg.status().to_string();
-  cfg->sessions_dir = dir.path();
-  rig::Daemon::Options o;
-  o.config = *cfg;
-  o.clock = std::make_shared<devices::SimulatedClock>(1'000'000'000);
-  o.software_version = "test";
-  Result<std::unique_ptr<rig::Daemon>> d = rig::Daemon::create(o);
-  ASSERT_TRUE(d.ok()) << d.status().to_string();
   // Three locations (not collinear), the plan's minimum of 30 steps each, three cameras.
   std::string plan_text(kPlan);
   const auto replace = [&](std::string_view from, std::string_view to) {
@@ -184,18 +125,15 @@ TEST(HandEyeSession, LargeShaftMarkersSetApartByTheTrackerAreUsed) {
   replace("cameras: [cam0, cam1, cam2, cam3, cam4, cam5, cam6]", "cameras: [cam0, cam1, cam2]");
   Result<rig::Plan> plan = rig::parse_plan(plan_text, "hand_eye.yaml");
   ASSERT_TRUE(plan.ok()) << plan.status().to_string();
-  Result<Json> started = (*d)->start(*plan);
-  ASSERT_TRUE(started.ok()) << started.status().to_string();
-  ASSERT_TRUE((*d)->wait_idle(300000));
-  const Json summary = (*d)->last_summary();
-  ASSERT_EQ(summary["state"], "finished") << summary.dump(2);
-  const std::filesystem::path session = summary["session"].get<std::string>();
-  Result<RigCalibration> rig = true_rig(session);
+  Result<std::filesystem::path> session =
+      hc::testing::record_simulated_session(*cfg, *plan, dir.path());
+  ASSERT_TRUE(session.ok()) << session.status().to_string();
+  Result<RigCalibration> rig = hc::testing::true_rig_of_session(*session);
   ASSERT_TRUE(rig.ok()) << rig.status().to_string();
   ASSERT_EQ(rig->cameras.size(), 3u);
   HandEyeSessionOptions ho;
   ho.marker0_tool_z_m = 0.02;  // as the demo: `--marker0-z 0.02`
-  Result<HandEyeSessionResult> r = calibrate_hand_eye_from_session(session, *rig, ho);
+  Result<HandEyeSessionResult> r = calibrate_hand_eye_from_session(*session, *rig, ho);
   ASSERT_TRUE(r.ok()) << r.status().to_string();
   RecordProperty("result", r->to_json().dump());
   EXPECT_EQ(r->steps, 90u);

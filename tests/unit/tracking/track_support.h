@@ -14,8 +14,10 @@
 #include "common/config.h"
 #include "common/tet_mesh_io.h"
 #include "processing/fem/verification.h"
-#include "rig_daemon/daemon/daemon.h"
+#include "rig_daemon/daemon/plan.h"
+#include "rig_daemon/daemon/rig_config.h"
 #include "rig_daemon/devices/pinhole.h"
+#include "sim_session.h"
 
 namespace hc::tracking::testing {
 
@@ -62,20 +64,8 @@ inline Result<std::filesystem::path> record_session(const std::filesystem::path&
                                                     const std::string& rig_yaml,
                                                     const std::string& plan_yaml) {
   HC_ASSIGN_OR_RETURN(rig::RigConfig cfg, rig::parse_rig_config(rig_yaml, "rig.yaml"));
-  cfg.sessions_dir = dir;
-  rig::Daemon::Options o;
-  o.config = cfg;
-  o.clock = std::make_shared<devices::SimulatedClock>(1'000'000'000);
-  o.software_version = "test";
-  HC_ASSIGN_OR_RETURN(std::unique_ptr<rig::Daemon> d, rig::Daemon::create(o));
   HC_ASSIGN_OR_RETURN(rig::Plan plan, rig::parse_plan(plan_yaml, "plan.yaml"));
-  HC_ASSIGN_OR_RETURN(Json started, d->start(plan));
-  (void)started;
-  if (!d->wait_idle(1800000)) return internal_error("the session did not finish");
-  const Json s = d->last_summary();
-  if (s["state"] != "finished" || !s.contains("session"))
-    return internal_error("session not finished: " + s.dump());
-  return std::filesystem::path(s["session"].get<std::string>());
+  return hc::testing::record_simulated_session(std::move(cfg), plan, dir);
 }
 
 // The true calibration of the rig config's cameras (world frame = rig frame).

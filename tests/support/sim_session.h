@@ -1,0 +1,82 @@
+// Sessions recorded in-process by the rig daemon on simulated devices with simulated time, and the
+// true calibration of their cameras: the setup of every test that tracks or calibrates from a
+// recorded session. Include only from tests that link hardcopy_daemon and
+// hardcopy_camera_calibration.
+#pragma once
+
+#include <filesystem>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "calibration/cameras/camera_model.h"
+#include "common/json.h"
+#include "common/status.h"
+#include "rig_daemon/daemon/daemon.h"
+#include "rig_daemon/daemon/plan.h"
+#include "rig_daemon/daemon/rig_config.h"
+#include "rig_daemon/daemon/session_layout.h"
+#include "rig_daemon/devices/clock.h"
+#include "rig_daemon/recording/mcap_reader.h"
+
+namespace hc::testing {
+
+// Runs `plan` on a daemon built from `cfg` (sessions written to `sessions_dir`) on a simulated
+// clock; returns the recorded session's path once the plan has finished.
+inline Result<std::filesystem::path> record_simulated_session(
+    rig::RigConfig cfg, const rig::Plan& plan, const std::filesystem::path& sessions_dir,
+    int timeout_ms = 1'800'000) {
+  cfg.sessions_dir = sessions_dir;
+  rig::Daemon::Options o;
+  o.config = std::move(cfg);
+  o.clock = std::make_shared<devices::SimulatedClock>(1'000'000'000);
+  o.software_version = "test";
+  HC_ASSIGN_OR_RETURN(std::unique_ptr<rig::Daemon> d, rig::Daemon::create(o));
+  HC_ASSIGN_OR_RETURN(Json started, d->start(plan));
+  (void)started;
+  if (!d->wait_idle(timeout_ms)) return internal_error("the session did not finish in time");
+  const Json s = d->last_summary();
+  if (s["state"] != "finished" || !s.contains("session"))
+    return internal_error("session not finished: " + s.dump());
+  return std::filesystem::path(s["session"].get<std::string>());
+}
+
+// The simulated cameras' true calibration from a session's "sim_cameras" metadata, in the frame
+// of its first camera (by name), as calibrate_rig reports a rig.
+inline Result<calib::RigCalibration> true_rig_of_session(const std::filesystem::path& session) {
+  HC_ASSIGN_OR_RETURN(recording::McapReader reader, recording::McapReader::open(session));
+  HC_ASSIGN_OR_RETURN(std::vector<recording::Metadata> md, reader.read_metadata());
+  for (const recording::Metadata& m : md) {
+    if (m.name != rig::kMetadataSimCameras) continue;
+    HC_ASSIGN_OR_RETURN(Json j, parse_json(m.metadata.at("json"), "sim_cameras"));
+    calib::RigCalibration rig;
+    Eigen::Isometry3d cam0_from_world = Eigen::Isometry3d::Identity();
+    for (const auto& [name, c] : j.items()) {  // names in order: cam0, cam1, ...
+      Eigen::Isometry3d cam_from_world = Eigen::Isometry3d::Identity();
+      for (int a = 0; a < 3; ++a) {
+        cam_from_world.translation()[a] = c["t_m"][static_cast<std::size_t>(a)].get<double>();
+        for (int b = 0; b < 3; ++b)
+          cam_from_world.linear()(a, b) =
+              c["R"][static_cast<std::size_t>(a)][static_cast<std::size_t>(b)].get<double>();
+      }
+      if (rig.cameras.empty()) cam0_from_world = cam_from_world;
+      const Eigen::Isometry3d cam_from_rig = cam_from_world * cam0_from_world.inverse();
+      calib::CameraModel cm;
+      cm.name = name;
+      cm.width = c["width"].get<int>();
+      cm.height = c["height"].get<int>();
+      cm.fx = c["fx"].get<double>();
+      cm.fy = c["fy"].get<double>();
+      cm.cx = c["cx"].get<double>();
+      cm.cy = c["cy"].get<double>();
+      cm.distortion = c["distortion"].get<std::vector<double>>();
+      cm.R = cam_from_rig.linear();
+      cm.t_m = cam_from_rig.translation();
+      rig.cameras.push_back(cm);
+    }
+    return rig;
+  }
+  return not_found(session.string() + ": no sim_cameras metadata");
+}
+
+}  // namespace hc::testing
