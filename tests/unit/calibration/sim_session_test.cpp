@@ -39,7 +39,7 @@ TEST(SimRigSession, CalibrationCaptureRecoversTrueCameras) {
       rig::load_plan(hc::testing::source_dir() / "rig_daemon/examples/calibration_board.yaml");
   ASSERT_TRUE(plan.ok()) << plan.status().to_string();
   Result<std::filesystem::path> recorded =
-      hc::testing::record_simulated_session(*cfg, *plan, dir.path(), 120000);
+      hc::testing::record_simulated_session(*cfg, *plan, dir.path(), 900000);
   ASSERT_TRUE(recorded.ok()) << recorded.status().to_string();
   const std::string session = recorded->string();
   // Truth: the simulated cameras in camera 0's frame.

@@ -201,7 +201,8 @@ struct RealTimeRig {
 // frames at 1000 Hz, so the render threads fall behind and the frame buffers overrun.
 constexpr const char* kFastBigCamera =
     "{trigger: free_run, frame_rate_hz: 1000, width: 1600, height: 1200, fx: 3500, fy: 3500,"
-    " position_m: [0.2, 0, 0.25], look_at_m: [0, 0, 0.055], pixel_noise: 2, render_buffers: 3}";
+    " position_m: [0.2, 0, 0.25], look_at_m: [0, 0, 0.055], pixel_noise: 2, render_buffers: 3,"
+    " render_thread: true}";
 
 TEST(SimCameraRender, RealTimeReadsDoNotWaitForPixelsAndOverrunsCountLost) {
   using Clock = std::chrono::steady_clock;
@@ -252,7 +253,7 @@ TEST(SimCameraRender, RealTimeReadsDoNotWaitForPixelsAndOverrunsCountLost) {
   SimRig sim(5);
   auto ref = sim.make<Camera>(
       "cam", std::string(kFastBigCamera)
-                 .replace(std::string(kFastBigCamera).size() - 1, 1, ", render_thread: false}"));
+                 .replace(std::string(kFastBigCamera).size() - 5, 5, "false}"));
   ASSERT_TRUE(ref->activate().ok());
   std::vector<Frame> ref_frames;
   const std::uint64_t last = std::min<std::uint64_t>(got[2].frame_index, 30);
