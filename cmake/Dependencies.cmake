@@ -30,10 +30,6 @@ set_target_properties(TetGen::TetGen PROPERTIES IMPORTED_LOCATION ${TETGEN_LIBRA
 # CHOLMOD. Debian's libceres links ATLAS's libf77blas, whose dgemm_ would otherwise win the symbol
 # lookup (it comes first among the libraries' dependencies) and is ~2x slower here (bench_fem_step:
 # 10k tets 49 ms vs 27 ms per factorisation). A direct dependency is searched before any indirect one.
-# The serial build (scripts/setup: libopenblas-serial-dev): the threaded one spins its threads
-# against everything else on a loaded 2-core machine (OpenCV's calibrateCamera in bench_calibration
-# 64 s instead of 5.5 s at load 4; the 10k-tet step 1.7 s instead of 29 ms) and makes results
-# depend on the thread count.
 find_library(OPENBLAS_LIBRARY openblas REQUIRED)
 # libgomp: the OpenMP runtime CHOLMOD uses; common/openmp.h calls it to run CHOLMOD serially.
 find_library(GOMP_LIBRARY NAMES gomp libgomp.so.1 REQUIRED)
