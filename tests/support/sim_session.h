@@ -41,6 +41,15 @@ inline Result<std::filesystem::path> record_simulated_session(
   return std::filesystem::path(s["session"].get<std::string>());
 }
 
+// The same from YAML texts of a rig config and a plan (their names in errors: rig.yaml, plan.yaml).
+inline Result<std::filesystem::path> record_simulated_session(
+    const std::string& rig_yaml, const std::string& plan_yaml,
+    const std::filesystem::path& sessions_dir, int timeout_ms = 1'800'000) {
+  HC_ASSIGN_OR_RETURN(rig::RigConfig cfg, rig::parse_rig_config(rig_yaml, "rig.yaml"));
+  HC_ASSIGN_OR_RETURN(rig::Plan plan, rig::parse_plan(plan_yaml, "plan.yaml"));
+  return record_simulated_session(std::move(cfg), plan, sessions_dir, timeout_ms);
+}
+
 // The simulated cameras' true calibration from a session's "sim_cameras" metadata, in the frame
 // of its first camera (by name), as calibrate_rig reports a rig.
 inline Result<calib::RigCalibration> true_rig_of_session(const std::filesystem::path& session) {

@@ -40,12 +40,8 @@ trigger: {rate_hz: 100, pulse_width_s: 0.001}
 
 TEST(HandEyeSession, SimulatedAutomatedSessionRecoversCam0Pose) {
   ScratchDir dir;
-  Result<rig::RigConfig> cfg = rig::parse_rig_config(rig::kEmbeddedDefaultRigConfig, "rig.yaml");
-  ASSERT_TRUE(cfg.ok()) << cfg.status().to_string();
-  Result<rig::Plan> plan = rig::parse_plan(kPlan, "hand_eye.yaml");
-  ASSERT_TRUE(plan.ok()) << plan.status().to_string();
-  Result<std::filesystem::path> session =
-      hc::testing::record_simulated_session(*cfg, *plan, dir.path());
+  Result<std::filesystem::path> session = hc::testing::record_simulated_session(
+      std::string(rig::kEmbeddedDefaultRigConfig), std::string(kPlan), dir.path());
   ASSERT_TRUE(session.ok()) << session.status().to_string();
 
   Result<RigCalibration> rig = hc::testing::true_rig_of_session(*session);
@@ -111,8 +107,6 @@ world:
 
 TEST(HandEyeSession, LargeShaftMarkersSetApartByTheTrackerAreUsed) {
   ScratchDir dir;
-  Result<rig::RigConfig> cfg = rig::parse_rig_config(kHalfHiresRig, "rig.yaml");
-  ASSERT_TRUE(cfg.ok()) << cfg.status().to_string();
   // Three locations (not collinear), the plan's minimum of 30 steps each, three cameras.
   std::string plan_text(kPlan);
   const auto replace = [&](std::string_view from, std::string_view to) {
@@ -123,10 +117,8 @@ TEST(HandEyeSession, LargeShaftMarkersSetApartByTheTrackerAreUsed) {
   replace("  - {position_m: [-0.02, -0.015, 0.062], direction: [0, 0, -1]}\n", "");
   replace("force_levels_n: [8]", "force_levels_n: [2]");
   replace("cameras: [cam0, cam1, cam2, cam3, cam4, cam5, cam6]", "cameras: [cam0, cam1, cam2]");
-  Result<rig::Plan> plan = rig::parse_plan(plan_text, "hand_eye.yaml");
-  ASSERT_TRUE(plan.ok()) << plan.status().to_string();
   Result<std::filesystem::path> session =
-      hc::testing::record_simulated_session(*cfg, *plan, dir.path());
+      hc::testing::record_simulated_session(std::string(kHalfHiresRig), plan_text, dir.path());
   ASSERT_TRUE(session.ok()) << session.status().to_string();
   Result<RigCalibration> rig = hc::testing::true_rig_of_session(*session);
   ASSERT_TRUE(rig.ok()) << rig.status().to_string();

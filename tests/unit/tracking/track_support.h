@@ -63,9 +63,7 @@ inline std::string press_plan_yaml(int steps, double force_n, double x = 0.0, do
 inline Result<std::filesystem::path> record_session(const std::filesystem::path& dir,
                                                     const std::string& rig_yaml,
                                                     const std::string& plan_yaml) {
-  HC_ASSIGN_OR_RETURN(rig::RigConfig cfg, rig::parse_rig_config(rig_yaml, "rig.yaml"));
-  HC_ASSIGN_OR_RETURN(rig::Plan plan, rig::parse_plan(plan_yaml, "plan.yaml"));
-  return hc::testing::record_simulated_session(std::move(cfg), plan, dir);
+  return hc::testing::record_simulated_session(rig_yaml, plan_yaml, dir);
 }
 
 // The true calibration of the rig config's cameras (world frame = rig frame).
