@@ -5,9 +5,14 @@
 #include <opencv2/core.hpp>
 #include <opencv2/core/eigen.hpp>
 
+#include <algorithm>
 #include <cmath>
+#include <optional>
 #include <set>
+#include <string>
+#include <vector>
 
+#include "common/config.h"
 #include "common/file_io.h"
 
 namespace hc::calib {
@@ -109,105 +114,106 @@ cv::Mat to_cv(const Eigen::MatrixXd& m) {
   return out;
 }
 
-// Reads a matrix node of exactly rows x cols (cols < 0: any column count when rows == 1).
-Result<Eigen::MatrixXd> read_matrix(const cv::FileNode& node, std::string_view key, int rows,
-                                    int cols, const std::string& where) {
-  if (node.empty() || !node.isMap())
-    return invalid_argument(fmt::format("{}: '{}' missing or not a matrix", where, key));
-  // The declared size must match the data before OpenCV allocates rows x cols (found by
-  // fuzz_rig_calibration: "rows: (3" made cv::Mat try to allocate 48 GB).
-  {
-    const cv::FileNode r = node["rows"], c = node["cols"], data = node["data"];
-    if (!r.isInt() || !c.isInt() || !data.isSeq() || static_cast<int>(r) < 0 ||
-        static_cast<int>(c) < 0 ||
-        static_cast<std::size_t>(static_cast<int>(r)) *
-                static_cast<std::size_t>(static_cast<int>(c)) !=
-            data.size())
-      return invalid_argument(fmt::format(
-          "{}: '{}' is not a well-formed matrix (rows, cols and data disagree)", where, key));
-  }
-  cv::Mat m;
-  node >> m;
-  if (m.empty() && !(rows == 1 && cols < 0))
-    return invalid_argument(fmt::format("{}: '{}' is empty", where, key));
-  if (!m.empty() && (m.rows != rows || (cols >= 0 && m.cols != cols)))
-    return invalid_argument(fmt::format("{}: '{}' is {}x{}, expected {}x{}", where, key, m.rows,
-                                        m.cols, rows,
-                                        cols < 0 ? std::string("N") : std::to_string(cols)));
-  Eigen::MatrixXd e;
-  if (!m.empty()) {
-    cv::Mat d;
-    m.convertTo(d, CV_64F);
-    cv::cv2eigen(d, e);
-  }
-  if (!e.allFinite()) return invalid_argument(fmt::format("{}: '{}' is not finite", where, key));
-  return e;
+// Names the file's top level uses for itself; a camera cannot have them.
+bool reserved_name(std::string_view name) {
+  return name == "camera_names" || name == "joint_rms_px" || name == "world_from_rig";
 }
 
-Result<double> read_number(const cv::FileNode& node, std::string_view key,
-                           const std::string& where) {
-  if (node.empty() || !(node.isReal() || node.isInt()))
-    return invalid_argument(fmt::format("{}: '{}' missing or not a number", where, key));
-  const double v = static_cast<double>(node);
-  if (!std::isfinite(v)) return invalid_argument(fmt::format("{}: '{}' is not finite", where, key));
-  return v;
+// Reads the !!opencv-matrix under `key` (rows, cols, dt, data in row-major order) into `out`,
+// which must be exactly rows x cols (cols < 0: 1 x N, N >= 0). False (error recorded) otherwise.
+bool read_matrix(ConfigNode parent, std::string_view key, int rows, int cols,
+                 Eigen::MatrixXd& out) {
+  std::optional<ConfigNode> node = parent.find(key);
+  if (!node) {
+    parent.error(key, "required matrix is missing");
+    return false;
+  }
+  int r = 0, c = 0;
+  std::string dt;
+  std::vector<double> data;
+  // Declared sizes are bounded before anything is sized from them.
+  bool ok = node->required("rows", r, Bounds::between(0, 64));
+  ok = node->required("cols", c, Bounds::between(0, 64)) && ok;
+  ok = node->required("dt", dt, {"d", "f", "i", "u", "s", "w", "c"}) && ok;
+  ok = node->required("data", data) && ok;
+  if (!ok) return false;
+  if (static_cast<std::size_t>(r) * static_cast<std::size_t>(c) != data.size()) {
+    node->error(fmt::format("'{}' is not a well-formed matrix: {}x{} declared, {} values", key, r,
+                            c, data.size()));
+    return false;
+  }
+  const bool any_row_vector = rows == 1 && cols < 0;
+  if (!(any_row_vector && data.empty()) && (r != rows || (cols >= 0 && c != cols))) {
+    node->error(fmt::format("'{}' is {}x{}, expected {}x{}", key, r, c, rows,
+                            cols < 0 ? std::string("N") : std::to_string(cols)));
+    return false;
+  }
+  if (data.empty()) {
+    out.resize(1, 0);
+    return true;
+  }
+  out = Eigen::Map<const Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>>(
+      data.data(), r, c);
+  return true;
 }
 
-Result<RigCalibration> parse(const cv::FileStorage& fs, const std::string& file) {
-  RigCalibration rig;
-  const cv::FileNode names = fs["camera_names"];
-  if (names.empty() || !names.isSeq() || names.size() == 0)
-    return invalid_argument(file + ": 'camera_names' missing or not a non-empty sequence");
-  std::set<std::string> seen;
-  for (const cv::FileNode& n : names) {
-    if (!n.isString()) return invalid_argument(file + ": 'camera_names' holds a non-string");
-    const std::string name = static_cast<std::string>(n);
-    if (name.empty() || !seen.insert(name).second)
-      return invalid_argument(file + ": camera name '" + name + "' is empty or repeated");
-    const cv::FileNode node = fs[name];
-    const std::string where = file + ": " + name;
-    if (node.empty() || !node.isMap()) return invalid_argument(where + ": missing camera map");
-    CameraModel c;
-    c.name = name;
-    HC_ASSIGN_OR_RETURN(double w, read_number(node["image_width"], "image_width", where));
-    HC_ASSIGN_OR_RETURN(double h, read_number(node["image_height"], "image_height", where));
-    if (w < 1 || h < 1 || w > 1e6 || h > 1e6 || w != std::floor(w) || h != std::floor(h))
-      return invalid_argument(where + ": image size must be positive integers");
-    c.width = static_cast<int>(w);
-    c.height = static_cast<int>(h);
-    HC_ASSIGN_OR_RETURN(Eigen::MatrixXd K,
-                        read_matrix(node["camera_matrix"], "camera_matrix", 3, 3, where));
+void read_camera(ConfigNode node, CameraModel& c) {
+  node.required("image_width", c.width, Bounds::between(1, 1e6));
+  node.required("image_height", c.height, Bounds::between(1, 1e6));
+  Eigen::MatrixXd K, d, R, t;
+  if (read_matrix(node, "camera_matrix", 3, 3, K)) {
     c.fx = K(0, 0);
     c.fy = K(1, 1);
     c.cx = K(0, 2);
     c.cy = K(1, 2);
-    HC_ASSIGN_OR_RETURN(Eigen::MatrixXd d, read_matrix(node["distortion_coefficients"],
-                                                       "distortion_coefficients", 1, -1, where));
+  }
+  if (read_matrix(node, "distortion_coefficients", 1, -1, d))
     c.distortion.assign(d.data(), d.data() + d.size());
-    HC_ASSIGN_OR_RETURN(Eigen::MatrixXd R, read_matrix(node["R"], "R", 3, 3, where));
-    HC_ASSIGN_OR_RETURN(Eigen::MatrixXd t, read_matrix(node["t"], "t", 3, 1, where));
-    c.R = R;
-    c.t_m = t;
-    if (!node["rms_px"].empty()) {
-      HC_ASSIGN_OR_RETURN(c.rms_px, read_number(node["rms_px"], "rms_px", where));
+  if (read_matrix(node, "R", 3, 3, R)) c.R = R;
+  if (read_matrix(node, "t", 3, 1, t)) c.t_m = t;
+  node.optional("rms_px", c.rms_px, Bounds::non_negative());
+  if (!node.status().ok()) return;
+  if (const Status s = validate(c); !s.ok()) node.error(s.message());
+}
+
+Status parse(ConfigNode root, RigCalibration& rig) {
+  std::vector<std::string> names;
+  if (!root.required("camera_names", names)) return root.status();
+  if (names.empty()) {
+    root.error("camera_names", "'camera_names' must name at least one camera");
+    return root.status();
+  }
+  std::set<std::string> seen;
+  for (const std::string& name : names) {
+    if (name.empty() || reserved_name(name) || !seen.insert(name).second) {
+      root.error("camera_names", fmt::format("camera name '{}' is empty, reserved or repeated",
+                                             name.substr(0, 64)));
+      return root.status();
     }
-    const Status s = validate(c);
-    if (!s.ok()) return invalid_argument(file + ": " + s.message());
+  }
+  for (const std::string& name : names) {
+    CameraModel c;
+    c.name = name;
+    std::optional<ConfigNode> node = root.find(name);
+    if (!node) {
+      root.error(name, fmt::format("camera '{}' is listed in camera_names but has no map",
+                                   name.substr(0, 64)));
+      continue;
+    }
+    read_camera(*node, c);
     rig.cameras.push_back(std::move(c));
   }
-  if (!fs["joint_rms_px"].empty()) {
-    HC_ASSIGN_OR_RETURN(rig.joint_rms_px, read_number(fs["joint_rms_px"], "joint_rms_px", file));
-  }
-  if (!fs["world_from_rig"].empty()) {
-    HC_ASSIGN_OR_RETURN(Eigen::MatrixXd T,
-                        read_matrix(fs["world_from_rig"], "world_from_rig", 4, 4, file));
+  root.optional("joint_rms_px", rig.joint_rms_px, Bounds::non_negative());
+  Eigen::MatrixXd T;
+  if (root.has("world_from_rig") && read_matrix(root, "world_from_rig", 4, 4, T)) {
     const Eigen::Matrix3d R = T.topLeftCorner<3, 3>();
     if ((R * R.transpose() - Eigen::Matrix3d::Identity()).norm() > 1e-6 || R.determinant() < 0.0 ||
         (T.row(3) - Eigen::RowVector4d(0, 0, 0, 1)).norm() > 1e-12)
-      return invalid_argument(file + ": 'world_from_rig' is not a rigid transform");
-    rig.world_from_rig.matrix() = T;
+      root.error("world_from_rig", "'world_from_rig' is not a rigid transform");
+    else
+      rig.world_from_rig.matrix() = T;
   }
-  return rig;
+  return root.status();
 }
 
 }  // namespace
@@ -217,8 +223,8 @@ Status write_rig_calibration(const std::filesystem::path& path, const RigCalibra
   std::set<std::string> seen;
   for (const CameraModel& c : rig.cameras) {
     HC_RETURN_IF_ERROR(validate(c));
-    if (!seen.insert(c.name).second)
-      return invalid_argument("camera name '" + c.name + "' is repeated");
+    if (!seen.insert(c.name).second || reserved_name(c.name))
+      return invalid_argument("camera name '" + c.name + "' is repeated or reserved");
     // FileStorage keys: a letter or '_' first, then letters, digits, '_' or '-'.
     const bool ok_first = std::isalpha(static_cast<unsigned char>(c.name[0])) || c.name[0] == '_';
     bool ok_rest = true;
@@ -257,27 +263,22 @@ Status write_rig_calibration(const std::filesystem::path& path, const RigCalibra
   return write_file_atomic(path, text);
 }
 
+// Read with yaml-cpp through common/config (bounded and fuzzed), not with OpenCV's FileStorage:
+// OpenCV 4.6's YAML parser loops forever on some malformed input (found by fuzz_rig_calibration,
+// e.g. "%YAML:1.0\n   -l\n:\nx"). OpenCV still writes the files and reads ours (tested).
 Result<RigCalibration> read_rig_calibration(const std::filesystem::path& path) {
   constexpr std::size_t kMaxBytes = 16u << 20;
   HC_ASSIGN_OR_RETURN(std::string text, read_file(path, kMaxBytes));
   const std::string file = path.string();
   if (text.find_first_not_of(" \t\r\n") == std::string::npos)
     return invalid_argument(file + ": empty calibration file");
-  try {
-    cv::FileStorage fs(
-        text, cv::FileStorage::READ | cv::FileStorage::MEMORY | cv::FileStorage::FORMAT_YAML);
-    if (!fs.isOpened()) return invalid_argument(file + ": not an OpenCV YAML file");
-    return parse(fs, file);
-  } catch (const cv::Exception& e) {
-    // OpenCV reports parse errors by exception; keep its first line (it names the line).
-    std::string what = e.what();
-    if (const auto nl = what.find('\n', 1); nl != std::string::npos && nl > 0) what.resize(nl);
-    return invalid_argument(file + ": malformed YAML: " + what);
-  } catch (const std::exception& e) {
-    // OpenCV's parser also lets standard exceptions escape on some malformed input (found by
-    // fuzz_rig_calibration: std::length_error from a string it sizes from garbage).
-    return invalid_argument(file + ": malformed YAML (" + e.what() + ")");
-  }
+  // OpenCV's "%YAML:1.0" is not a YAML 1.2 directive; blank it (keeping the line count).
+  if (text.starts_with("%YAML:")) text.replace(0, std::min(text.find('\n'), text.size()), "");
+  HC_ASSIGN_OR_RETURN(Config config, parse_config(text, file));
+  RigCalibration rig;
+  HC_RETURN_IF_ERROR(
+      read_config(config, [&](ConfigNode root) { return parse(root, rig); }));
+  return rig;
 }
 
 }  // namespace hc::calib
