@@ -156,6 +156,8 @@ Eigen::Matrix<double, Eigen::Dynamic, 6> ExampleProblem::strains() const {
   return impl_->fem.strains();
 }
 
+void ExampleProblem::update_rotations() { impl_->fem.update_rotations(); }
+
 Status ExampleProblem::simulate(const std::vector<LambdaAlpha>& p, Eigen::VectorXd* residual) {
   HC_RETURN_IF_ERROR(impl_->solve_at(p));
   impl_->measured(residual);

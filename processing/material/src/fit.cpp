@@ -720,6 +720,10 @@ Result<Material> fit_joint_material(const std::vector<ExampleProblem*>& problems
           if (!st[i].ok()) break;
           (*strains)[i] = problems[i]->strains();
           update_features(i);
+          // The next LM pass linearises at the model's own configuration, not the noisy
+          // measured one (noise study, mean of 5 noise seeds: 10 % 2.31 -> 2.21 %, 20 % 3.73 ->
+          // 3.35 %, 30 % 4.58 -> 4.04 %).
+          problems[i]->update_rotations();
         }
       });
       for (const Status& e : st) HC_RETURN_IF_ERROR(e);

@@ -72,8 +72,22 @@
 //   γ_J 0.015 / 0.05 (instead of 0.03) x γ, 1 or 3 strain passes (instead of 2): no better. 10 %
 //   stays at ~2.4 %: at that level even clean data give 1.54 %, i.e. the smoothing the noise needs,
 //   not the model, now dominates.
-// * Next candidates: γ chosen from the data (GCV / discrepancy), a per-layer (edge-preserving)
-//   smoothing that keeps the 150/60/30 kPa jumps.
+// * Rotations re-frozen at the model's configuration between the joint passes (fit.h; the first
+//   pass still linearises at the noisy measured one): seed 2026 2.36 / 3.32 / 3.91 -> 2.26 /
+//   3.09 / 3.55 %; over the noise seeds 2026, 7, 99, 1, 2 the means went 2.31 / 3.73 / 4.58 ->
+//   2.21 / 3.35 / 4.04 % (per seed 10 %: 2.26 2.42 2.28 1.88 2.22; 20 %: 3.09 3.66 3.64 2.77
+//   3.58; 30 %: 3.55 4.18 3.87 3.75 4.85). With the re-freeze, 3 passes, or a re-freeze before
+//   the first pass, or γ_J 0.015 / 0.06 x γ: no better on seeds 2026, 7, 1.
+// * Tried and dropped after it (session 5): (h) a piecewise-constant material - the smooth fit's
+//   parameters clustered by k-means into K <= 6 regions, refitted per region, K by BIC: 4.40 /
+//   4.12 / 4.45 % (seed 2026): the smooth fit blurs the layers too much for the clusters to find
+//   them; even the TRUE three layers as regions (an oracle, 12 parameters) gave 1.80 / 4.52 /
+//   3.78 % (seed 7: 1.74 / 3.20 / 7.29 %), i.e. the stiffness-vs-stiffening trade-off of the
+//   soft top layer is poorly determined at 20-30 % noise even then; (i) 16 or 25 examples
+//   instead of 9: 2.42 / 3.90 / 5.25 and 2.20 / 3.54 / 5.09 % (seed 2026), no better, and the
+//   clean error rises to 0.23 / 0.39 % (probes nearer the edges strain the mesh harder).
+// * Next candidates: γ chosen from the data (GCV / discrepancy), an edge-preserving smoothing
+//   that keeps the 150/60/30 kPa jumps.
 #include <gtest/gtest.h>
 
 #include <cstdint>
@@ -156,14 +170,15 @@ void run_noise_study(const double (&bound)[4]) {
   }
 }
 
-// Regression bounds: what this implementation reaches today (measured 0.10 %, 2.36 %, 3.32 %,
-// 3.91 % with g++ 12 Release) with a ~10 % margin for other compilers' rounding; 0 % at the
+// Regression bounds: what this implementation reaches today (measured 0.10 %, 2.26 %, 3.09 %,
+// 3.55 % with g++ 12 Release) with a ~10 % margin for other compilers' rounding; 0 % at the
 // thesis's value.
-TEST(NoiseStudy, ErrorsWithinMeasuredBounds) { run_noise_study({0.003, 0.026, 0.037, 0.043}); }
+TEST(NoiseStudy, ErrorsWithinMeasuredBounds) { run_noise_study({0.003, 0.025, 0.034, 0.039}); }
 
 // The acceptance criterion (thesis Sec. 4.5: 0.3 %, 2.1 %, 3.1 %, 4.4 %). Still disabled:
-// 0 % and 30 % pass, 10 % and 20 % do not (2.36 %, 3.32 %; see the top of this file); run with
-// --gtest_also_run_disabled_tests.
+// with this seed 0 %, 20 % and 30 % pass and 10 % does not (2.26 %); over five noise seeds the
+// means are 2.21 / 3.35 / 4.04 % (see the top of this file), so 20 % is not yet reliably met
+// either. Run with --gtest_also_run_disabled_tests.
 TEST(NoiseStudy, DISABLED_ErrorsNoWorseThanTheThesis) {
   run_noise_study({0.003, 0.021, 0.031, 0.044});
 }

@@ -68,6 +68,9 @@ class ExampleProblem {
   // elements together: column pairs are then summed per group (k groups → 2k columns).
   Status jacobian(Eigen::MatrixXd* j, const std::vector<int>* groups = nullptr,
                   int num_groups = 0) const;
+  // Re-freezes the rotations R_e at the last simulate()'s positions (the model's own
+  // configuration instead of the measured one).
+  void update_rotations();
   // Positions (#N by 3) and rotated-frame strains (#T by 6) of the last simulate().
   const MatrixX3d& positions() const;
   Eigen::Matrix<double, Eigen::Dynamic, 6> strains() const;
@@ -161,8 +164,10 @@ Status fit_example(ExampleProblem* problem, const std::vector<LambdaAlpha>& init
 // longer fights it, and every element's parameters are estimated from all examples that strain it
 // (the Gauss–Newton weighting). The factor's floor ½ keeps a softening element from collapsing. The
 // strains are held during an LM run (Appendix A's Jacobian with the chain rule through λ0, ν, k, m)
-// and updated between passes (each example simulated with the current material, rotations frozen
-// as in the fit).
+// and updated between passes: each example is simulated with the current material in co-rotational
+// sweeps whose rotations are then kept for the next pass (the first pass starts from the measured
+// configuration's rotations, as the per-example fits do; with noisy data the model's own
+// configuration is the better linearisation point).
 struct JointRefinementOptions {
   bool enabled = false;
   // γ_J relative to ParameterFitOptions::regularization.
