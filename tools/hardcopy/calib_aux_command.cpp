@@ -214,10 +214,10 @@ void add_calib_aux_commands(CLI::App& app, const GlobalOptions& global, int* exi
   f->add_option("SESSION", fb->input, "Session file (.mcap)")->required();
   f->add_option("--device", fb->device, "F/T device name (default: the first F/T channel)");
   f->add_option("--window", fb->window_s, "Analysis window, s")
-      ->check(CLI::PositiveNumber)
+      ->check(kPositive)
       ->capture_default_str();
   f->add_option("--threshold", fb->threshold_n, "Loaded when farther than this from the bias, N")
-      ->check(CLI::PositiveNumber)
+      ->check(kPositive)
       ->capture_default_str();
   f->add_flag("--json", fb->json, "Print one JSON object");
   f->callback([&global, fb, exit_code] { *exit_code = run_ft_bias(global, *fb); });
@@ -234,7 +234,7 @@ void add_calib_aux_commands(CLI::App& app, const GlobalOptions& global, int* exi
   r->add_option("--fsr", fs->fsr_device, "FSR device name (default: the first FSR channel)");
   r->add_option("--ft", fs->ft_device, "F/T device name (default: the first F/T channel)");
   r->add_option("--min-force", fs->min_force_n, "Pairs with less reference force are not fitted, N")
-      ->check(CLI::NonNegativeNumber)
+      ->check(kNonNegative)
       ->capture_default_str();
   r->add_option("--knots", fs->knots, "Knots of the piecewise-linear curve")
       ->check(CLI::Range(2, 64))

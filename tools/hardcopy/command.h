@@ -3,6 +3,7 @@
 
 #include <CLI/CLI.hpp>
 #include <memory>
+#include <string>
 #include <string_view>
 #include <vector>
 
@@ -33,6 +34,23 @@ class Context {
  private:
   std::unique_ptr<ProgressReporter> progress_;
 };
+
+// Number checks with readable messages ("--probe-radius: must be > 0, got -2"); CLI11's
+// PositiveNumber prints its range up to DBL_MAX in full.
+inline const CLI::Validator kPositive(
+    [](std::string& value) -> std::string {
+      double v = 0;
+      if (!CLI::detail::lexical_cast(value, v) || !(v > 0)) return "must be > 0, got " + value;
+      return {};
+    },
+    "POSITIVE", "POSITIVE");
+inline const CLI::Validator kNonNegative(
+    [](std::string& value) -> std::string {
+      double v = 0;
+      if (!CLI::detail::lexical_cast(value, v) || !(v >= 0)) return "must be >= 0, got " + value;
+      return {};
+    },
+    "NONNEGATIVE", "NONNEGATIVE");
 
 // Each family (one file, e.g. mesh_command.cpp) adds its subcommands to the app; a subcommand's
 // callback stores its exit code in *exit_code. Families register themselves at static-initialisation

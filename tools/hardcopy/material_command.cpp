@@ -297,12 +297,12 @@ void add_material_commands(CLI::App& app, const GlobalOptions& global, int* exit
   sy->add_option("SCENE", sa->scene, "Scene JSON (as for hardcopy simulate)")->required();
   sy->add_option("-o,--output", sa->output, "Samples JSON to write")->required();
   sy->add_option("--examples", sa->examples, "Number of examples")
-      ->check(CLI::PositiveNumber)
+      ->check(kPositive)
       ->capture_default_str();
   sy->add_option("--noise", sa->noise,
                  "Gaussian noise on each measured coordinate, standard deviation relative to the "
                  "example's largest displacement (0.1 = 10 %)")
-      ->check(CLI::NonNegativeNumber)
+      ->check(kNonNegative)
       ->capture_default_str();
   sy->add_option("--seed", sa->seed, "Random seed (placement and noise)")->capture_default_str();
   sy->add_flag("--surface-only", sa->surface_only,
@@ -324,24 +324,24 @@ void add_material_commands(CLI::App& app, const GlobalOptions& global, int* exit
   h->add_option("--regularization", fa->regularization,
                 "Weight gamma of the Laplacian smoothness term (dimensionless; residuals are "
                 "divided by each example's largest displacement)")
-      ->check(CLI::NonNegativeNumber)
+      ->check(kNonNegative)
       ->capture_default_str();
   h->add_option("--tolerance", fa->tolerance,
                 "Greedy basis selection stops when every example's parameters are reproduced "
                 "within this relative error")
-      ->check(CLI::NonNegativeNumber)
+      ->check(kNonNegative)
       ->capture_default_str();
   h->add_option("--max-basis", fa->max_basis, "Largest RBF basis per tet")
-      ->check(CLI::PositiveNumber)
+      ->check(kPositive)
       ->capture_default_str();
   h->add_option("--max-iterations", fa->max_iterations, "LM iterations per example")
-      ->check(CLI::PositiveNumber)
+      ->check(kPositive)
       ->capture_default_str();
   h->add_option("--backend", fa->backend, "Optimiser: own LM or Ceres")
       ->check(CLI::IsMember({"own", "ceres"}))
       ->capture_default_str();
   h->add_option("--threads", fa->threads, "Examples fitted in parallel (0: all cores)")
-      ->check(CLI::NonNegativeNumber);
+      ->check(kNonNegative);
   h->add_flag("--joint", fa->joint,
               "For noisy data: after the per-example fits, fit one material (per tet base "
               "stiffness, Poisson's ratio, a linear and a quadratic-like strain stiffening) to ALL "
@@ -351,7 +351,7 @@ void add_material_commands(CLI::App& app, const GlobalOptions& global, int* exit
               "With --joint: the linear strain stiffening only (one RBF centre per tet)");
   h->add_option("--joint-regularization", fa->joint_regularization,
                 "With --joint: its Laplacian weight relative to --regularization")
-      ->check(CLI::NonNegativeNumber)
+      ->check(kNonNegative)
       ->capture_default_str();
   h->callback([&global, fa, exit_code] { *exit_code = run_fit(global, *fa); });
 
@@ -365,7 +365,7 @@ void add_material_commands(CLI::App& app, const GlobalOptions& global, int* exit
   e->add_option("--samples", ea->samples, "Samples JSON (hardcopy.samples)")->required();
   e->add_flag("--json", ea->json, "Print one JSON object");
   e->add_option("--steps", ea->steps, "Load increments")
-      ->check(CLI::PositiveNumber)
+      ->check(kPositive)
       ->capture_default_str();
   e->callback([&global, ea, exit_code] { *exit_code = run_evaluate(global, *ea); });
 }

@@ -160,7 +160,7 @@ void add_mesh_commands(CLI::App& app, const GlobalOptions& global, int* exit_cod
   r->add_option("OUT", repair->output, "Repaired mesh")->required();
   r->add_option("--weld-tolerance", repair->weld_tolerance,
                 "Merge vertices closer than this, in the mesh's unit (0: identical positions)")
-      ->check(CLI::NonNegativeNumber)
+      ->check(kNonNegative)
       ->capture_default_str();
   r->add_flag("--resolve-self-intersections", repair->resolve_self_intersections,
               fmt::format("Then try CGAL's experimental repairs on self-intersecting triangles "

@@ -196,7 +196,7 @@ void add_session_commands(CLI::App& app, const GlobalOptions& global, int* exit_
   r->add_option("--compression", recover->compression, "Output chunk compression: zstd, lz4, none")
       ->capture_default_str();
   r->add_option("--chunk-size", recover->chunk_size, "Output chunk size, uncompressed bytes")
-      ->check(CLI::PositiveNumber)
+      ->check(kPositive)
       ->capture_default_str();
   r->add_flag("--json", recover->json, "Print one JSON object");
   r->callback([&global, recover, exit_code] { *exit_code = run_recover(global, *recover); });

@@ -166,7 +166,7 @@ void add_tetmesh_commands(CLI::App& app, const GlobalOptions& global, int* exit_
       ->capture_default_str();
   c->add_option("--max-volume", args->max_volume_m3,
                 "Maximum tet volume in m^3, after scaling (TetGen -a; 0 = none)")
-      ->check(CLI::NonNegativeNumber)
+      ->check(kNonNegative)
       ->capture_default_str();
   c->add_option("--scale-to-m", args->scale_to_m,
                 "Multiply input coordinates by this to get metres (0.001 for a mesh in mm)")

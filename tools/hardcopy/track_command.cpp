@@ -26,7 +26,7 @@ struct TrackArgs {
   std::string templ;
   std::string output;
   std::size_t max_steps = 0;
-  double probe_radius_m = 0.005;
+  std::optional<double> probe_radius_m;
   double match_distance_m = 1.0e-3;
   std::string markers = "blobs";
   std::vector<double> shaft_markers_m;
@@ -172,13 +172,13 @@ void add_track_commands(CLI::App& app, const GlobalOptions& global, int* exit_co
       ->required();
   t->add_option("--max-steps", args->max_steps, "Track only the first N steps (0: all)")
       ->capture_default_str();
-  t->add_option("--probe-radius", args->probe_radius_m, "Probe sphere radius, m")
-      ->capture_default_str()
-      ->check(CLI::PositiveNumber);
+  t->add_option("--probe-radius", args->probe_radius_m,
+                "Probe tip sphere radius, m (default: the session's rig config, else 0.005)")
+      ->check(kPositive);
   t->add_option("--match-distance", args->match_distance_m,
                 "Largest marker-to-template-node distance after registration, m")
       ->capture_default_str()
-      ->check(CLI::PositiveNumber);
+      ->check(kPositive);
   t->add_option("--markers", args->markers,
                 "Dot detector: 'blobs' (bright dots on a dark surface, Otsu threshold) or "
                 "'color:L,a,b,TOL' (painted dots of one colour: CIE Lab box of half-width TOL "

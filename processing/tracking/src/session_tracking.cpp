@@ -108,7 +108,7 @@ std::vector<Eigen::Vector3d> fill_with_probe_contact(
     const std::vector<Eigen::Vector3d>& surface_nodes, const Eigen::Vector3d& tip,
     const Eigen::Vector3d& down, const SessionTrackOptions& options,
     std::vector<Eigen::Vector3d> filled) {
-  const double R = options.probe_radius_m;
+  const double R = *options.probe_radius_m;
   const Eigen::Vector3d centre = tip - R * down;
   const auto lateral = [&](const Eigen::Vector3d& x) {
     const Eigen::Vector3d w = x - tip;
@@ -195,16 +195,17 @@ std::vector<Eigen::Vector3d> fill_with_probe_contact(
   return filled;
 }
 
-// The probe's shaft-marker distances from a rig config (SessionDetections says which). Read
-// leniently: a rig config the daemon accepted is not re-validated here; anything unreadable just
-// leaves the geometry unknown.
-std::optional<std::array<double, 2>> shaft_distances_of_rig(const std::string& yaml) {
-  // The simulator's default probe (rig_daemon/devices sim_scene.h ProbeLook::marker_distances_m,
-  // a library the offline tools do not link): keep in step with it.
-  constexpr std::array<double, 2> kSimDefault{0.06, 0.11};
+}  // namespace
+
+RigProbe probe_of_rig_config(const std::string& yaml) {
+  // The simulator's default probe (rig_daemon/devices sim_scene.h ProbeLook::marker_distances_m
+  // and sim_world.h WorldOptions::probe_radius_m, a library the offline tools do not link): keep
+  // in step with it.
+  constexpr std::array<double, 2> kSimDistances{0.06, 0.11};
+  constexpr double kSimRadius = 0.005;
+  RigProbe out;
   Result<Config> cfg = parse_config(yaml, "rig_config");
-  if (!cfg.ok()) return std::nullopt;
-  std::optional<std::array<double, 2>> out;
+  if (!cfg.ok()) return out;
   bool simulated = false;
   const Status st = read_config(*cfg, [&](ConfigNode root) -> Status {
     root.allow_unknown_keys();
@@ -219,19 +220,28 @@ std::optional<std::array<double, 2>> shaft_distances_of_rig(const std::string& y
     if (std::optional<ConfigNode> world = root.find("world")) {
       simulated = true;
       world->allow_unknown_keys();
+      double r = 0;
+      if (world->optional("probe_radius_m", r)) out.radius_m = r;
       if (std::optional<ConfigNode> probe = world->find("probe")) {
         probe->allow_unknown_keys();
         std::array<double, 2> d{};
-        if (probe->optional("marker_distances_m", d)) out = d;
+        if (probe->optional("marker_distances_m", d)) out.shaft_marker_distances_m = d;
       }
     }
     return {};
   });
-  if (!st.ok()) return std::nullopt;
-  if (!out && simulated) out = kSimDefault;
-  if (out && !((*out)[0] > 0 && (*out)[1] > (*out)[0])) return std::nullopt;
+  if (!st.ok()) return {};
+  if (const auto& d = out.shaft_marker_distances_m; d && !((*d)[0] > 0 && (*d)[1] > (*d)[0]))
+    out.shaft_marker_distances_m.reset();
+  if (out.radius_m && !(*out.radius_m > 0 && std::isfinite(*out.radius_m))) out.radius_m.reset();
+  if (simulated) {
+    if (!out.shaft_marker_distances_m) out.shaft_marker_distances_m = kSimDistances;
+    if (!out.radius_m) out.radius_m = kSimRadius;
+  }
   return out;
 }
+
+namespace {
 
 struct PendingFrame {
   std::size_t step = 0;
@@ -290,7 +300,11 @@ Result<SessionDetections> read_session_detections(const std::filesystem::path& s
   for (const recording::Metadata& m : *metadata) {
     if (m.name == recording::kMetadataRigConfig) {
       auto it = m.metadata.find("yaml");
-      if (it != m.metadata.end()) out.shaft_marker_distances_m = shaft_distances_of_rig(it->second);
+      if (it != m.metadata.end()) {
+        const RigProbe probe = probe_of_rig_config(it->second);
+        out.shaft_marker_distances_m = probe.shaft_marker_distances_m;
+        out.probe_radius_m = probe.radius_m;
+      }
       continue;
     }
     if (m.name != recording::kMetadataCalibration) continue;
@@ -601,8 +615,13 @@ std::optional<ProbePose> probe_pose_from_shaft_markers(
 
 Result<TrackedSession> track_detections(const SessionDetections& in,
                                         const calib::RigCalibration& calibration,
-                                        const TetMesh& mesh, const SessionTrackOptions& options) {
-  HC_RETURN_IF_ERROR(options.track.validate());
+                                        const TetMesh& mesh, const SessionTrackOptions& requested) {
+  HC_RETURN_IF_ERROR(requested.track.validate());
+  // The probe radius: the caller's, else the session's, else the simulator's default.
+  SessionTrackOptions options = requested;
+  if (!options.probe_radius_m) options.probe_radius_m = in.probe_radius_m.value_or(0.005);
+  if (!(*options.probe_radius_m > 0) || !std::isfinite(*options.probe_radius_m))
+    return invalid_argument("the probe radius must be > 0");
   if (in.steps.empty()) return invalid_argument("no steps to track");
   if (mesh.num_nodes() < 4 || mesh.num_tets() < 1)
     return invalid_argument("the template mesh is empty");
@@ -867,8 +886,8 @@ Result<TrackedSession> track_detections(const SessionDetections& in,
     if (tip_tpl) {
       const Eigen::Vector3d tip = *tip_tpl;
       ex.probe.shape = "sphere";
-      ex.probe.radius_m = options.probe_radius_m;
-      ex.probe.position_m = tip - options.probe_radius_m * down;
+      ex.probe.radius_m = *options.probe_radius_m;
+      ex.probe.position_m = tip - *options.probe_radius_m * down;
       ex.probe.direction = down;
     }
     if (st.has_force) {
@@ -881,7 +900,7 @@ Result<TrackedSession> track_detections(const SessionDetections& in,
           if (std::find(fixed.begin(), fixed.end(), static_cast<int>(n)) != fixed.end()) continue;
           const Eigen::Vector3d x = ex.positions_m.row(static_cast<Eigen::Index>(n)).transpose();
           const double depth =
-              options.probe_radius_m + options.contact_tolerance_m - (x - c).norm();
+              *options.probe_radius_m + options.contact_tolerance_m - (x - c).norm();
           if (depth > 0) {
             w.emplace_back(static_cast<int>(n), depth);
             wsum += depth;

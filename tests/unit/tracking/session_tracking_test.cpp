@@ -165,6 +165,8 @@ TEST_F(SimulatedPress, MarkersWithinATenthOfAMillimetreOfTheTruth) {
   ASSERT_TRUE(det->shaft_marker_distances_m.has_value());
   EXPECT_EQ((*det->shaft_marker_distances_m)[0], 0.015);
   EXPECT_EQ((*det->shaft_marker_distances_m)[1], 0.035);
+  ASSERT_TRUE(det->probe_radius_m.has_value());  // a simulated rig without world.probe_radius_m
+  EXPECT_EQ(*det->probe_radius_m, 0.005);
   EXPECT_EQ(s.probe_from_markers, 30u);
   EXPECT_EQ(s.probe_fallbacks, 0u);
   EXPECT_EQ(s.probe_source, "shaft markers in every step");
@@ -185,6 +187,7 @@ TEST_F(SimulatedPress, MarkersWithinATenthOfAMillimetreOfTheTruth) {
           << "step " << k << " marker " << i;
     // The samples' probe sphere is centred R above the measured tip, pushing along -axis.
     const material::Example& ex = tr->samples.examples[k];
+    EXPECT_EQ(ex.probe.radius_m, 0.005);
     EXPECT_LT((ex.probe.position_m -
                (*det->steps[k].truth_probe_tip_m + 0.005 * Eigen::Vector3d::UnitZ()))
                   .norm(),
@@ -400,6 +403,46 @@ TEST_F(SimulatedPress, ProbePoseFallsBackToTheArmPose) {
   EXPECT_EQ(tr->summary.probe_fallbacks, 6u);
   EXPECT_NE(tr->summary.probe_source.find("no shaft-marker geometry"), std::string::npos);
   EXPECT_FALSE(tr->summary.has_probe_truth);
+  // The probe radius: the caller's over the session's over the simulator's default 5 mm.
+  SessionTrackOptions radius;
+  radius.probe_radius_m = 0.004;
+  tr = track_detections(det, *calibration_, testing::block_template(), radius);
+  ASSERT_TRUE(tr.ok()) << tr.status().to_string();
+  EXPECT_EQ(tr->samples.examples[0].probe.radius_m, 0.004);
+  det.probe_radius_m = 0.007;
+  tr = track_detections(det, *calibration_, testing::block_template());
+  ASSERT_TRUE(tr.ok()) << tr.status().to_string();
+  EXPECT_EQ(tr->samples.examples[0].probe.radius_m, 0.007);
+  det.probe_radius_m.reset();
+  tr = track_detections(det, *calibration_, testing::block_template());
+  ASSERT_TRUE(tr.ok()) << tr.status().to_string();
+  EXPECT_EQ(tr->samples.examples[0].probe.radius_m, 0.005);
+  radius.probe_radius_m = -1.0;
+  EXPECT_EQ(track_detections(det, *calibration_, testing::block_template(), radius).status().code(),
+            StatusCode::kInvalidArgument);
+}
+
+// The probe's geometry as read from a session's rig config (world section of a simulated rig).
+TEST(ProbeOfRigConfig, ReadsTheWorldSectionAndTheSimulatorsDefaults) {
+  RigProbe p = probe_of_rig_config(
+      "devices: {arm: {kind: arm, backend: sim}}\n"
+      "world: {probe_radius_m: 0.0065, probe: {marker_distances_m: [0.02, 0.05]}}\n");
+  ASSERT_TRUE(p.radius_m && p.shaft_marker_distances_m);
+  EXPECT_EQ(*p.radius_m, 0.0065);
+  EXPECT_EQ((*p.shaft_marker_distances_m)[1], 0.05);
+  // A simulated rig without a world section: the simulator's defaults (sim_world.h, sim_scene.h).
+  p = probe_of_rig_config("devices: {arm: {kind: arm, backend: sim}}\n");
+  ASSERT_TRUE(p.radius_m && p.shaft_marker_distances_m);
+  EXPECT_EQ(*p.radius_m, 0.005);
+  EXPECT_EQ((*p.shaft_marker_distances_m)[0], 0.06);
+  // A real rig says nothing about the probe; bad values and unreadable YAML are ignored.
+  p = probe_of_rig_config("devices: {arm: {kind: arm, backend: modbus}}\n");
+  EXPECT_FALSE(p.radius_m || p.shaft_marker_distances_m);
+  p = probe_of_rig_config("world: {probe_radius_m: -1, probe: {marker_distances_m: [0.05, 0.02]}}");
+  EXPECT_EQ(*p.radius_m, 0.005);
+  EXPECT_EQ((*p.shaft_marker_distances_m)[0], 0.06);
+  p = probe_of_rig_config("world: [");
+  EXPECT_FALSE(p.radius_m || p.shaft_marker_distances_m);
 }
 
 TEST_F(SimulatedPress, MismatchedCalibrationIsAClearError) {
@@ -475,6 +518,14 @@ TEST_F(SimulatedPress, CliWritesSamplesAndPrintsTheJsonContract) {
                                         (dir_->path() / "block.node").string(), calib.string(),
                                         (dir_->path() / "block").string(), bad_out.string()));
   EXPECT_EQ(r.exit_code, 2);  // not an MCAP file
+  EXPECT_FALSE(std::filesystem::exists(bad_out));
+  r = hc::testing::run_command((hc::testing::bin_dir() / "hardcopy").string() +
+                               fmt::format(" track {} --calib {} --template {} -o {} "
+                                           "--probe-radius -0.005 2>&1",
+                                           session_->string(), calib.string(),
+                                           (dir_->path() / "block").string(), bad_out.string()));
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_NE(r.out.find("--probe-radius: must be > 0, got -0.005"), std::string::npos) << r.out;
   EXPECT_FALSE(std::filesystem::exists(bad_out));
   // A valid MCAP without any camera channel.
   const std::filesystem::path no_cams = dir_->path() / "no_cameras.mcap";

@@ -96,8 +96,22 @@ struct SessionDetections {
   // the simulator's default probe (0.06, 0.11) when the rig is simulated (a `world` section or a
   // `backend: sim` device); unset for other rigs (SessionTrackOptions can give them).
   std::optional<std::array<double, 2>> shaft_marker_distances_m;
+  // The probe's tip sphere radius (m) from the session's rig config: world.probe_radius_m of a
+  // simulated rig, the simulator's default 5 mm when it has none; unset for other rigs.
+  std::optional<double> probe_radius_m;
   StageTimes times;
 };
+
+// The probe's geometry from a session's rig config (its rig_config metadata, YAML): for a
+// simulated rig (a `world` section or a `backend: sim` device) world.probe_radius_m and
+// world.probe.marker_distances_m, each defaulting to the simulator's (5 mm; 0.06, 0.11 m) when
+// absent or invalid; for other rigs unset. Read leniently: a rig config the daemon accepted is not
+// re-validated; unreadable YAML gives nothing.
+struct RigProbe {
+  std::optional<std::array<double, 2>> shaft_marker_distances_m;
+  std::optional<double> radius_m;
+};
+RigProbe probe_of_rig_config(const std::string& yaml);
 
 struct SessionReadOptions {
   markers::BlobOptions blobs;
@@ -162,7 +176,9 @@ struct SessionTrackOptions {
   bool probe_from_shaft_markers = true;
   double template_match_distance_m = 1.0e-3;
   double fixed_tolerance_m = 1.0e-6;
-  double probe_radius_m = 0.005;  // sphere radius of the probe (the simulator's default)
+  // Sphere radius of the probe's tip (m); unset: the session's (SessionDetections::probe_radius_m),
+  // else 5 mm (the simulator's default).
+  std::optional<double> probe_radius_m;
   double contact_tolerance_m = 0.3e-3;
   double fill_regularization_m = 0.0;
   // The probe sphere constrains the fill: filled nodes inside it and surface nodes within its
