@@ -62,9 +62,11 @@ struct RigCalibration {
 // image_width, image_height, camera_matrix (3x3), distortion_coefficients (1xN), R (3x3), t (3x1,
 // m), rms_px. Atomic (temp file + rename): nothing half-written on error.
 Status write_rig_calibration(const std::filesystem::path& path, const RigCalibration& rig);
-// Reads what write_rig_calibration writes (and files OpenCV itself wrote in that layout).
-// kInvalidArgument naming the file and key on anything missing, malformed or not finite; camera
-// names must be unique and non-empty, K positive, R a rotation.
+// Reads what write_rig_calibration writes (and files OpenCV itself wrote in that layout), with
+// yaml-cpp through common/config rather than OpenCV's parser (which never returns on some
+// malformed input). kInvalidArgument naming the file, line and key on anything missing, malformed
+// or not finite; camera names must be unique, non-empty and not one of the top-level keys, K
+// positive, R a rotation.
 Result<RigCalibration> read_rig_calibration(const std::filesystem::path& path);
 // Validates one model (sizes, positive focal lengths, finite values, R orthonormal with det +1,
 // distortion count 0/4/5/8); the message names the camera.
