@@ -37,20 +37,19 @@ class Context {
 
 // Number checks with readable messages ("--probe-radius: must be > 0, got -2"); CLI11's
 // PositiveNumber prints its range up to DBL_MAX in full.
-inline const CLI::Validator kPositive(
-    [](std::string& value) -> std::string {
-      double v = 0;
-      if (!CLI::detail::lexical_cast(value, v) || !(v > 0)) return "must be > 0, got " + value;
-      return {};
-    },
-    "POSITIVE", "POSITIVE");
-inline const CLI::Validator kNonNegative(
-    [](std::string& value) -> std::string {
-      double v = 0;
-      if (!CLI::detail::lexical_cast(value, v) || !(v >= 0)) return "must be >= 0, got " + value;
-      return {};
-    },
-    "NONNEGATIVE", "NONNEGATIVE");
+inline CLI::Validator zero_bound_check(bool strict) {
+  const std::string name = strict ? "POSITIVE" : "NONNEGATIVE";
+  return CLI::Validator(
+      [strict](std::string& value) -> std::string {
+        double v = 0;
+        const bool ok = CLI::detail::lexical_cast(value, v) && (strict ? v > 0 : v >= 0);
+        return ok ? std::string() : std::string(strict ? "must be > 0" : "must be >= 0") +
+                                        ", got " + value;
+      },
+      name, name);
+}
+inline const CLI::Validator kPositive = zero_bound_check(true);
+inline const CLI::Validator kNonNegative = zero_bound_check(false);
 
 // Each family (one file, e.g. mesh_command.cpp) adds its subcommands to the app; a subcommand's
 // callback stores its exit code in *exit_code. Families register themselves at static-initialisation

@@ -557,8 +557,7 @@ Result<Material> fit_joint_material(const std::vector<ExampleProblem*>& problems
   // The strain-dependent factor is kept above this (λ > 0 for any k).
   constexpr double kMinFactor = 0.5;  // see fit.h
 
-  // Parameters per tet: (ln λ0, logit(ν/ν_max), k[, m]).
-  const Eigen::Index np = options.quadratic_stiffening ? 4 : 3;
+  const Eigen::Index np = options.parameters_per_tet();
   // Start: per element the geometric mean λ and the mean logit ν of the per-example estimates.
   Eigen::VectorXd x = Eigen::VectorXd::Zero(np * t);
   for (Eigen::Index e = 0; e < t; ++e) {
@@ -618,7 +617,7 @@ Result<Material> fit_joint_material(const std::vector<ExampleProblem*>& problems
     offset[i] = rows;
     rows += problems[i]->num_measurements();
   }
-  // The stacked Jacobian is dense (rows × 3T); refuse what would not fit in memory rather than
+  // The stacked Jacobian is dense (rows × np T); refuse what would not fit in memory rather than
   // fail in the allocator (the thesis-scale foam, 48 examples on 1,805 tets, would need ~8 GB).
   const double jacobian_bytes = 8.0 * static_cast<double>(rows) * static_cast<double>(np * t);
   if (jacobian_bytes > options.max_jacobian_bytes)

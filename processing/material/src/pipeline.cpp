@@ -48,7 +48,7 @@ Result<Material> fit_heterogeneous(const Samples& samples, const HeterogeneousFi
             !std::binary_search(ex.fixed_nodes.begin(), ex.fixed_nodes.end(), static_cast<int>(k)))
           rows += 3;
     const double bytes =
-        8.0 * rows * (options.joint.quadratic_stiffening ? 4.0 : 3.0) * static_cast<double>(t);
+        8.0 * rows * options.joint.parameters_per_tet() * static_cast<double>(t);
     if (bytes > options.joint.max_jacobian_bytes)
       return failed_precondition(fmt::format(
           "joint material fit: its Jacobian would take {:.1f} GB (limit {:.1f} GB); use fewer "

@@ -184,10 +184,13 @@ struct JointRefinementOptions {
   // 1e-5 halves the noise study's iterations (46 -> 18 at 10 %) for < 0.02 % change in its error.
   double function_tolerance = 1e-5;
   int passes = 2;  // (strains under the current material, LM) rounds
-  // The LM stores the stacked Jacobian densely (all measurements × 3T, 8 bytes each) and keeps
+  // The LM stores the stacked Jacobian densely (all measurements × parameters_per_tet() T, 8 bytes
+  // each) and keeps
   // every example's FEM factorisation: fine for the noise study's size (2,700 × 864), not for the
   // thesis-scale foam (48 × ~4,000 × 5,400: 8 GB). Larger problems fail with kFailedPrecondition.
   double max_jacobian_bytes = 2e9;
+  // (ln λ0, logit ν, k[, m]): 4 with the quadratic-like stiffening, else 3.
+  int parameters_per_tet() const { return quadratic_stiffening ? 4 : 3; }
   Status validate() const;
 };
 
