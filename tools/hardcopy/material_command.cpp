@@ -185,6 +185,7 @@ struct FitArgs {
   int threads = 0;
   bool joint = false;
   double joint_regularization = material::JointRefinementOptions{}.regularization_scale;
+  std::string joint_adjacency = "face";
   bool joint_linear = false;
 };
 
@@ -203,6 +204,8 @@ int run_fit(const GlobalOptions& global, const FitArgs& args) {
   options.threads = args.threads;
   options.joint.enabled = args.joint;
   options.joint.regularization_scale = args.joint_regularization;
+  options.joint.adjacency = args.joint_adjacency == "vertex" ? material::TetAdjacency::kVertex
+                                                             : material::TetAdjacency::kFace;
   options.joint.quadratic_stiffening = !args.joint_linear;
   options.progress = ctx.progress();
   if (Status s = options.validate(); !s.ok()) return ctx.fail(kName, s);
@@ -352,6 +355,11 @@ void add_material_commands(CLI::App& app, const GlobalOptions& global, int* exit
   h->add_option("--joint-regularization", fa->joint_regularization,
                 "With --joint: its Laplacian weight relative to --regularization")
       ->check(kNonNegative)
+      ->capture_default_str();
+  h->add_option("--joint-adjacency", fa->joint_adjacency,
+                "With --joint: the tets its Laplacian couples (face neighbours; vertex: the "
+                "thesis's per-example stencil, wider, which blurs jumps between layers)")
+      ->check(CLI::IsMember({"face", "vertex"}))
       ->capture_default_str();
   h->callback([&global, fa, exit_code] { *exit_code = run_fit(global, *fa); });
 

@@ -1,6 +1,7 @@
 #include <fmt/format.h>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <optional>
 
@@ -8,24 +9,47 @@
 
 namespace hc::material {
 
-Eigen::SparseMatrix<double> tet_umbrella_laplacian(const TetMesh& mesh) {
+Eigen::SparseMatrix<double> tet_umbrella_laplacian(const TetMesh& mesh, TetAdjacency adjacency) {
   const Eigen::Index t = mesh.num_tets();
-  std::vector<std::vector<int>> node_tets(static_cast<std::size_t>(mesh.num_nodes()));
-  for (Eigen::Index e = 0; e < t; ++e)
-    for (int k = 0; k < 4; ++k)
-      node_tets[static_cast<std::size_t>(mesh.tets(e, k))].push_back(static_cast<int>(e));
+  std::vector<std::vector<int>> neighbours(static_cast<std::size_t>(t));
+  if (adjacency == TetAdjacency::kVertex) {
+    std::vector<std::vector<int>> node_tets(static_cast<std::size_t>(mesh.num_nodes()));
+    for (Eigen::Index e = 0; e < t; ++e)
+      for (int k = 0; k < 4; ++k)
+        node_tets[static_cast<std::size_t>(mesh.tets(e, k))].push_back(static_cast<int>(e));
+    for (Eigen::Index e = 0; e < t; ++e) {
+      std::vector<int>& nb = neighbours[static_cast<std::size_t>(e)];
+      for (int k = 0; k < 4; ++k)
+        for (int f : node_tets[static_cast<std::size_t>(mesh.tets(e, k))])
+          if (f != e) nb.push_back(f);
+    }
+  } else {
+    // Each face as its sorted node triple with its tet; equal triples are adjacent tets.
+    std::vector<std::pair<std::array<int, 3>, int>> faces;
+    faces.reserve(static_cast<std::size_t>(4 * t));
+    for (Eigen::Index e = 0; e < t; ++e)
+      for (int skip = 0; skip < 4; ++skip) {
+        std::array<int, 3> f{};
+        for (int k = 0, j = 0; k < 4; ++k)
+          if (k != skip) f[static_cast<std::size_t>(j++)] = mesh.tets(e, k);
+        std::sort(f.begin(), f.end());
+        faces.emplace_back(f, static_cast<int>(e));
+      }
+    std::sort(faces.begin(), faces.end());
+    for (std::size_t i = 0; i + 1 < faces.size(); ++i)
+      if (faces[i].first == faces[i + 1].first && faces[i].second != faces[i + 1].second) {
+        neighbours[static_cast<std::size_t>(faces[i].second)].push_back(faces[i + 1].second);
+        neighbours[static_cast<std::size_t>(faces[i + 1].second)].push_back(faces[i].second);
+      }
+  }
   std::vector<Eigen::Triplet<double>> triplets;
-  std::vector<int> neighbours;
   for (Eigen::Index e = 0; e < t; ++e) {
-    neighbours.clear();
-    for (int k = 0; k < 4; ++k)
-      for (int f : node_tets[static_cast<std::size_t>(mesh.tets(e, k))])
-        if (f != e) neighbours.push_back(f);
-    std::sort(neighbours.begin(), neighbours.end());
-    neighbours.erase(std::unique(neighbours.begin(), neighbours.end()), neighbours.end());
+    std::vector<int>& nb = neighbours[static_cast<std::size_t>(e)];
+    std::sort(nb.begin(), nb.end());
+    nb.erase(std::unique(nb.begin(), nb.end()), nb.end());
     const auto row = static_cast<int>(e);
-    triplets.emplace_back(row, row, static_cast<double>(neighbours.size()));
-    for (int f : neighbours) triplets.emplace_back(row, f, -1.0);
+    triplets.emplace_back(row, row, static_cast<double>(nb.size()));
+    for (int f : nb) triplets.emplace_back(row, f, -1.0);
   }
   Eigen::SparseMatrix<double> l(t, t);
   l.setFromTriplets(triplets.begin(), triplets.end());

@@ -169,6 +169,29 @@ TEST(Laplacian, UmbrellaWeightsCountVertexNeighbours) {
   expected << 2, -1, -1, -1, 2, -1, -1, -1, 2;
   EXPECT_TRUE(l.isApprox(expected));
   EXPECT_NEAR(l.rowwise().sum().norm(), 0, 1e-15);  // constants are in the null space
+  // Face adjacency: only tets 0 and 1 share a face (1, 2, 3); tet 2 has no face neighbour.
+  const Eigen::MatrixXd lf =
+      Eigen::MatrixXd(tet_umbrella_laplacian(m, TetAdjacency::kFace));
+  expected << 1, -1, 0, -1, 1, 0, 0, 0, 0;
+  EXPECT_TRUE(lf.isApprox(expected)) << lf;
+}
+
+TEST(Laplacian, FaceNeighboursOfABoxMesh) {
+  // 3 x 2 x 2 cubes, 6 tets each: every tet has 4 faces; the boundary has 2 triangles per cube
+  // face, 2 (3·2 + 2·2 + 3·2) · 2 = 64, so the degrees sum to 4 T − 64 (each interior face counted
+  // from both sides); no tet has more than 4 face neighbours and L is symmetric.
+  const TetMesh m = testing::box_mesh(3, 2, 2, 0.03, 0.02, 0.02);
+  const Eigen::MatrixXd l = Eigen::MatrixXd(tet_umbrella_laplacian(m, TetAdjacency::kFace));
+  const auto t = static_cast<double>(m.num_tets());
+  EXPECT_EQ(m.num_tets(), 72);
+  EXPECT_DOUBLE_EQ(l.diagonal().sum(), 4 * t - 64);
+  EXPECT_LE(l.diagonal().maxCoeff(), 4);
+  EXPECT_GE(l.diagonal().minCoeff(), 1);
+  EXPECT_TRUE(l.isApprox(l.transpose()));
+  EXPECT_NEAR(l.rowwise().sum().norm(), 0, 1e-15);
+  // The vertex stencil is much wider on the same mesh.
+  const Eigen::MatrixXd lv = Eigen::MatrixXd(tet_umbrella_laplacian(m));
+  EXPECT_GT(lv.diagonal().minCoeff(), l.diagonal().maxCoeff());
 }
 
 }  // namespace

@@ -54,9 +54,11 @@ TEST(MaterialCli, SynthFitEvaluateRoundTrip) {
   const auto jj = nlohmann::json::parse(jf.out);
   EXPECT_EQ(jj["joint"], true);
   EXPECT_EQ(jj["mean_basis_size"], 13.0);
-  // --joint-linear: the linear stiffening only, one centre (zero strain) per tet.
+  // --joint-linear: the linear stiffening only, one centre (zero strain) per tet (here with the
+  // thesis's vertex-neighbour Laplacian instead of the default face neighbours).
   CliRun jl = hardcopy("fit heterogeneous --samples " + d + "/s.json -o " + d +
-                       "/ml.json --regularization 1e-6 --joint --joint-linear --json");
+                       "/ml.json --regularization 1e-6 --joint --joint-linear "
+                       "--joint-adjacency vertex --json");
   ASSERT_EQ(jl.exit_code, 0) << jl.out;
   EXPECT_EQ(nlohmann::json::parse(jl.out)["mean_basis_size"], 1.0);
   CliRun je = hardcopy("evaluate --material " + d + "/mj.json --samples " + d + "/s.json --json");
@@ -66,6 +68,11 @@ TEST(MaterialCli, SynthFitEvaluateRoundTrip) {
                      "/mk.json --joint --joint-regularization -1")
                 .exit_code,
             2);
+  EXPECT_EQ(hardcopy("fit heterogeneous --samples " + d + "/s.json -o " + d +
+                     "/mk.json --joint --joint-adjacency edge")
+                .exit_code,
+            2);
+  EXPECT_FALSE(std::filesystem::exists(dir / "mk.json"));
 }
 
 TEST(MaterialCli, BadInputExitsTwoAndWritesNothing) {

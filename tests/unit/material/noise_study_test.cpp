@@ -2,8 +2,13 @@
 // non-linear materials (strain-stiffening neo-Hookean, processing/hyperelastic), examples from that
 // reference model, Gaussian noise of 0/10/20/30 % of each example's max displacement on the
 // measured positions; the fitted material simulates the (clean) examples. Thesis: L2 error 0.3
-// %, 2.1 %, 3.1 %, 4.4 % of the max displacement; ours must be no worse. The full-size run is in
-// tests/bench/bench_material_fit.cpp.
+// %, 2.1 %, 3.1 %, 4.4 % of the max displacement "on average"; ours must be no worse (the mean
+// over five noise streams, MeanErrorsNoWorseThanTheThesis). The fit at the thesis's foam scale is
+// timed in tests/bench/bench_material_fit.cpp.
+//
+// Result (g++ 12 Release, mean over noise streams 2026, 7, 99, 1, 2): 0.10 / 1.92 / 2.89 / 3.73 %
+// (thesis 0.3 / 2.1 / 3.1 / 4.4 %); on five streams not used to choose any weight (11-15):
+// 1.79 / 2.49 / 3.19 %. How it got there, stage by stage:
 //
 // What limited the errors (profiled per stage: per-example LM fit, the per-example parameters
 // simulated as a constant material ("oracle"), then the RBF material; was 0.80/3.50/3.93/4.45 %):
@@ -86,19 +91,43 @@
 //   soft top layer is poorly determined at 20-30 % noise even then; (i) 16 or 25 examples
 //   instead of 9: 2.42 / 3.90 / 5.25 and 2.20 / 3.54 / 5.09 % (seed 2026), no better, and the
 //   clean error rises to 0.23 / 0.39 % (probes nearer the edges strain the mesh harder).
-// * Next candidates: γ chosen from the data (GCV / discrepancy), an edge-preserving smoothing
-//   that keeps the 150/60/30 kPa jumps.
+// * The joint material's Laplacian over FACE neighbours instead of the thesis's vertex
+//   neighbours (JointRefinementOptions::adjacency, session 6). With 6 tets per cube a tet has
+//   ~20-40 vertex neighbours, reaching across a whole 10 mm layer of this block from every tet, so
+//   the weight the noise needs blurs both layer jumps; a face neighbour stencil (≤ 4) smooths
+//   within a layer at a far heavier weight and penalises a jump only across the faces on it. The
+//   weights were chosen on streams 2026, 7, 99, 1, 2 (fit.h: γ_J 30 x γ, κ 30; means 2.21 / 3.35
+//   / 4.04 % -> 1.92 / 2.89 / 3.73 %) and checked on streams 11-15, not used for the choice:
+//   vertex stencil (0.03, κ 1) 2.11 / 3.08 / 3.76 %, face stencil 1.79 / 2.49 / 3.19 %, better on
+//   every stream at every level (per stream 10 %: 2.06 -> 1.72, 2.17 -> 1.91, 2.01 -> 1.81,
+//   2.12 -> 1.70, 2.17 -> 1.83).
+// * Not tried: γ chosen from the data (GCV / discrepancy principle) per noise draw.
 #include <gtest/gtest.h>
 
 #include <cstdint>
 #include <cstdio>
 #include <cstdlib>
+#include <iterator>
 
 #include "hyperelastic_reference.h"
 #include "processing/material/fit.h"
 
+#if defined(__SANITIZE_ADDRESS__)
+#define HC_NOISE_STUDY_ASAN 1
+#elif defined(__has_feature)
+#if __has_feature(address_sanitizer)
+#define HC_NOISE_STUDY_ASAN 1
+#endif
+#endif
+
 namespace hc::material {
 namespace {
+
+#if HC_NOISE_STUDY_ASAN
+constexpr bool kUnderAddressSanitizer = true;
+#else
+constexpr bool kUnderAddressSanitizer = false;
+#endif
 
 constexpr double kNoisyRegularization = 0.01;
 constexpr double kPoissonPrior = 0.1;
@@ -126,61 +155,93 @@ SynthOptions synth_options(const testing::HyperelasticReference& ref, int exampl
   return o;
 }
 
-void run_noise_study(const double (&bound)[4]) {
+// Thesis Sec. 4.5 ("On average, we obtain an error of 0.3 % ... 2.1 %, 3.1 % and 4.4 %").
+constexpr double kNoise[] = {0.0, 0.1, 0.2, 0.3};
+constexpr double kThesis[] = {0.003, 0.021, 0.031, 0.044};
+
+// error_rel_max_disp of the material fitted to the examples with noise level kNoise[k] (noise
+// stream `seed`), evaluated on the clean examples.
+double noise_study_error(const Samples& clean, int k, std::uint64_t seed) {
+  const Samples noisy = add_displacement_noise(clean, kNoise[k], seed);
+  HeterogeneousFitOptions options;
+  // Noise-free: weak smoothing, rich basis. Noisy: Tikhonov weight growing with the noise
+  // variance (γ = 0.01 σ², σ as a fraction of the max displacement), a small basis, a weak prior
+  // on Poisson's ratio, which displacement data hardly identify (see fit.h), and the joint
+  // material fit over all examples (its defaults).
+  if (kNoise[k] == 0) {
+    options.parameters.regularization = 1e-8;
+    options.rbf.tolerance = 0.02;
+  } else {
+    options.parameters.regularization = kNoisyRegularization * kNoise[k] * kNoise[k];
+    options.parameters.poisson_prior = kPoissonPrior;
+    options.rbf.max_basis = 3;
+    options.joint.enabled = true;
+  }
+  HeterogeneousFitSummary fs;
+  Result<Material> m = fit_heterogeneous(noisy, options, &fs);
+  EXPECT_TRUE(m.ok()) << m.status().to_string();
+  if (!m.ok()) return 1.0;
+  RbfMaterial model(*m);
+  Result<EvaluateSummary> ev = evaluate_material(model, clean, {});
+  EXPECT_TRUE(ev.ok()) << ev.status().to_string();
+  if (!ev.ok()) return 1.0;
+  std::printf(
+      "noise %2.0f %% (seed %llu): error %.2f %% of max displacement (thesis %.1f %%), basis "
+      "%.2f, fit rms %.2f %%, fit %.1f s (per example %.1f s, joint %.1f s, %d LM iterations)\n",
+      100 * kNoise[k], static_cast<unsigned long long>(seed), 100 * ev->error_rel_max_disp,
+      100 * kThesis[k], fs.mean_basis_size, 100 * fs.rms_error_m / clean.max_displacement_m(),
+      fs.time_s, fs.parameter_time_s, fs.joint_time_s, fs.joint.iterations);
+  return ev->error_rel_max_disp;
+}
+
+Samples clean_examples() {
   const testing::HyperelasticReference ref = three_layers();
   Result<Samples> clean =
       synthesize_samples(ref.mesh, ref.simulator(), synth_options(ref, kExamples, 0));
-  ASSERT_TRUE(clean.ok()) << clean.status().to_string();
-  // Thesis Sec. 4.5 ("On average, we obtain an error of 0.3 % ... 2.1 %, 3.1 % and 4.4 %").
-  const double noise[] = {0.0, 0.1, 0.2, 0.3};
-  const double thesis[] = {0.003, 0.021, 0.031, 0.044};
-  for (int k = 0; k < 4; ++k) {
-    // HC_NOISE_SEED overrides the noise stream's seed (for the other-seed checks; default 2026).
-    const char* seed_env = std::getenv("HC_NOISE_SEED");
-    const std::uint64_t seed = seed_env ? std::strtoull(seed_env, nullptr, 10) : 2026;
-    const Samples noisy = add_displacement_noise(*clean, noise[k], seed);
-    HeterogeneousFitOptions options;
-    // Noise-free: weak smoothing, rich basis. Noisy: Tikhonov weight growing with the noise
-    // variance (γ = 0.01 σ², σ as a fraction of the max displacement), a small basis, a weak
-    // prior on Poisson's ratio, which displacement data hardly identify (see fit.h), and the
-    // joint material fit over all examples (its defaults).
-    if (noise[k] == 0) {
-      options.parameters.regularization = 1e-8;
-      options.rbf.tolerance = 0.02;
-    } else {
-      options.parameters.regularization = kNoisyRegularization * noise[k] * noise[k];
-      options.parameters.poisson_prior = kPoissonPrior;
-      options.rbf.max_basis = 3;
-      options.joint.enabled = true;
-    }
-    HeterogeneousFitSummary fs;
-    Result<Material> m = fit_heterogeneous(noisy, options, &fs);
-    ASSERT_TRUE(m.ok()) << m.status().to_string();
-    RbfMaterial model(*m);
-    Result<EvaluateSummary> ev = evaluate_material(model, *clean, {});
-    ASSERT_TRUE(ev.ok()) << ev.status().to_string();
-    std::printf(
-        "noise %2.0f %%: error %.2f %% of max displacement (thesis %.1f %%), basis %.2f, fit rms "
-        "%.2f %%\n",
-        100 * noise[k], 100 * ev->error_rel_max_disp, 100 * thesis[k], fs.mean_basis_size,
-        100 * fs.rms_error_m / clean->max_displacement_m());
-    std::printf("  fit %.1f s (per example %.1f s, joint %.1f s, %d LM iterations)\n", fs.time_s,
-                fs.parameter_time_s, fs.joint_time_s, fs.joint.iterations);
-    EXPECT_LE(ev->error_rel_max_disp, bound[k]) << "noise " << noise[k];
-  }
+  EXPECT_TRUE(clean.ok()) << clean.status().to_string();
+  return clean.ok() ? *clean : Samples{};
 }
 
-// Regression bounds: what this implementation reaches today (measured 0.10 %, 2.26 %, 3.09 %,
-// 3.55 % with g++ 12 Release) with a ~10 % margin for other compilers' rounding; 0 % at the
-// thesis's value.
-TEST(NoiseStudy, ErrorsWithinMeasuredBounds) { run_noise_study({0.003, 0.025, 0.034, 0.039}); }
+// Regression bounds for one noise stream (HC_NOISE_SEED, default 2026): what this implementation
+// reaches today (measured 0.10 %, 1.89 %, 3.13 %, 4.02 % with g++ 12 Release) with a ~10 % margin
+// for other compilers' rounding; the noise-free bound is the thesis's 0.3 %. The sanitizer stage
+// runs this one (~6 min there).
+TEST(NoiseStudy, ErrorsWithinMeasuredBounds) {
+  const Samples clean = clean_examples();
+  ASSERT_GT(clean.examples.size(), 0u);
+  const char* seed_env = std::getenv("HC_NOISE_SEED");
+  const std::uint64_t seed = seed_env ? std::strtoull(seed_env, nullptr, 10) : 2026;
+  const double bound[] = {0.003, 0.021, 0.034, 0.044};
+  for (int k = 0; k < 4; ++k)
+    EXPECT_LE(noise_study_error(clean, k, seed), bound[k]) << "noise " << kNoise[k];
+}
 
-// The acceptance criterion (thesis Sec. 4.5: 0.3 %, 2.1 %, 3.1 %, 4.4 %). Still disabled:
-// with this seed 0 %, 20 % and 30 % pass and 10 % does not (2.26 %); over five noise seeds the
-// means are 2.21 / 3.35 / 4.04 % (see the top of this file), so 20 % is not yet reliably met
-// either. Run with --gtest_also_run_disabled_tests.
-TEST(NoiseStudy, DISABLED_ErrorsNoWorseThanTheThesis) {
-  run_noise_study({0.003, 0.021, 0.031, 0.044});
+// The acceptance criterion, thesis Sec. 4.5: "on average" no worse than 0.3 %, 2.1 %,
+// 3.1 %, 4.4 %. One noise draw varies a lot (10 % noise: 1.74-2.01 %, 20 %: 2.28-3.13 %, 30 %:
+// 3.03-4.20 % over the five streams below), so the criterion is the mean over five noise
+// streams; each single stream must stay within 1.25x the thesis. Measured means 0.10 / 1.92 /
+// 2.89 / 3.73 % (g++ 12 Release). The streams are the ones the joint fit's weights were chosen on
+// (fit.h); five others (11-15), not used for the choice, gave 1.79 / 2.49 / 3.19 %.
+TEST(NoiseStudy, MeanErrorsNoWorseThanTheThesis) {
+  if (kUnderAddressSanitizer)
+    GTEST_SKIP() << "~25 min under AddressSanitizer; the Release stage runs it, and "
+                    "ErrorsWithinMeasuredBounds runs the same code here";
+  const Samples clean = clean_examples();
+  ASSERT_GT(clean.examples.size(), 0u);
+  EXPECT_LE(noise_study_error(clean, 0, 2026), kThesis[0]);  // no noise: one run is the mean
+  const std::uint64_t seeds[] = {2026, 7, 99, 1, 2};
+  for (int k = 1; k < 4; ++k) {
+    double sum = 0;
+    for (const std::uint64_t seed : seeds) {
+      const double e = noise_study_error(clean, k, seed);
+      EXPECT_LE(e, 1.25 * kThesis[k]) << "noise " << kNoise[k] << ", seed " << seed;
+      sum += e;
+    }
+    const double mean = sum / static_cast<double>(std::size(seeds));
+    std::printf("noise %2.0f %%: mean error %.2f %% (thesis %.1f %%)\n", 100 * kNoise[k],
+                100 * mean, 100 * kThesis[k]);
+    EXPECT_LE(mean, kThesis[k]) << "noise " << kNoise[k];
+  }
 }
 
 }  // namespace
