@@ -114,11 +114,12 @@ int run_synth(const GlobalOptions& global, const SynthArgs& args) {
   if (ms.kind == scene::MaterialKind::kNeoHookean || ms.kind == scene::MaterialKind::kLinear) {
     // A linear scene material is taken as the neo-Hookean with the same small-strain constants:
     // synthetic samples always come from the hyperelastic reference model.
-    per_tet.assign(static_cast<std::size_t>(mesh->num_tets()), {ms.youngs_pa, ms.poisson, 0.0});
+    per_tet.assign(static_cast<std::size_t>(mesh->num_tets()),
+                   {ms.youngs_pa, ms.poisson, ms.stiffening});
   } else if (ms.kind == scene::MaterialKind::kLayered) {
     std::vector<hyperelastic::MaterialLayer> layers;
     for (const scene::LayerSpec& l : ms.layers)
-      layers.push_back({l.z_min_m, l.z_max_m, {l.youngs_pa, l.poisson, 0.0}});
+      layers.push_back({l.z_min_m, l.z_max_m, {l.youngs_pa, l.poisson, l.stiffening}});
     Result<std::vector<hyperelastic::NeoHookeanMaterial>> lm =
         hyperelastic::layered_materials(*mesh, layers);
     if (!lm.ok()) return ctx.fail(kName, lm.status());
@@ -178,6 +179,7 @@ struct FitArgs {
   std::string output;
   bool json = false;
   double regularization = material::ParameterFitOptions{}.regularization;
+  double poisson_prior = material::ParameterFitOptions{}.poisson_prior;
   double tolerance = material::HeterogeneousFitOptions::RbfOptions{}.tolerance;
   int max_basis = material::HeterogeneousFitOptions::RbfOptions{}.max_basis;
   int max_iterations = material::ParameterFitOptions{}.max_iterations;
@@ -196,6 +198,7 @@ int run_fit(const GlobalOptions& global, const FitArgs& args) {
   if (!samples.ok()) return ctx.fail(kName, samples.status());
   material::HeterogeneousFitOptions options;
   options.parameters.regularization = args.regularization;
+  options.parameters.poisson_prior = args.poisson_prior;
   options.parameters.max_iterations = args.max_iterations;
   options.parameters.backend =
       args.backend == "ceres" ? material::FitBackend::kCeres : material::FitBackend::kOwnLm;
@@ -327,6 +330,11 @@ void add_material_commands(CLI::App& app, const GlobalOptions& global, int* exit
   h->add_option("--regularization", fa->regularization,
                 "Weight gamma of the Laplacian smoothness term (dimensionless; residuals are "
                 "divided by each example's largest displacement)")
+      ->check(kNonNegative)
+      ->capture_default_str();
+  h->add_option("--poisson-prior", fa->poisson_prior,
+                "Weight of a weak prior pulling each tet's Poisson's ratio towards 0.3 (noisy "
+                "displacements hardly determine it; 0.1 in the noise study; 0: off)")
       ->check(kNonNegative)
       ->capture_default_str();
   h->add_option("--tolerance", fa->tolerance,

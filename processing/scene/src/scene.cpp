@@ -71,13 +71,24 @@ Result<std::filesystem::path> path_value(const Json& j, const std::string& key,
   return p;
 }
 
-Status parse_youngs_poisson(const Json& j, const std::string& path, double* e, double* nu) {
+// {"youngs_pa": E, "poisson": ν} and, when `stiffening` is given (neo-Hookean materials), an
+// optional "stiffening": β ≥ 0 (default 0).
+Status parse_youngs_poisson(const Json& j, const std::string& path, double* e, double* nu,
+                            double* stiffening = nullptr) {
   if (!j.is_object()) return key_error(path, "expected an object");
-  HC_RETURN_IF_ERROR(check_keys(j, path, {"youngs_pa", "poisson"}));
+  if (stiffening != nullptr) {
+    HC_RETURN_IF_ERROR(check_keys(j, path, {"youngs_pa", "poisson", "stiffening"}));
+  } else {
+    HC_RETURN_IF_ERROR(check_keys(j, path, {"youngs_pa", "poisson"}));
+  }
   HC_ASSIGN_OR_RETURN(const Json* je, member(j, path, "youngs_pa"));
   HC_ASSIGN_OR_RETURN(const Json* jn, member(j, path, "poisson"));
   HC_ASSIGN_OR_RETURN(*e, number(*je, path + ".youngs_pa"));
   HC_ASSIGN_OR_RETURN(*nu, number(*jn, path + ".poisson"));
+  if (stiffening != nullptr && j.contains("stiffening")) {
+    HC_ASSIGN_OR_RETURN(*stiffening, number(j["stiffening"], path + ".stiffening"));
+    if (!(*stiffening >= 0)) return key_error(path + ".stiffening", "must be >= 0");
+  }
   return fem::validate_youngs_poisson(*e, *nu).with_context("scene: " + path);
 }
 
@@ -147,9 +158,10 @@ Status parse_material(const Json& j, const std::filesystem::path& base, Material
         return key_error(lp, "needs exactly one of \"linear\" and \"neo_hookean\"");
       }
       layer.neo_hookean = l.contains("neo_hookean");
-      HC_RETURN_IF_ERROR(parse_youngs_poisson(layer.neo_hookean ? l["neo_hookean"] : l["linear"],
-                                              lp + (layer.neo_hookean ? ".neo_hookean" : ".linear"),
-                                              &layer.youngs_pa, &layer.poisson));
+      HC_RETURN_IF_ERROR(parse_youngs_poisson(
+          layer.neo_hookean ? l["neo_hookean"] : l["linear"],
+          lp + (layer.neo_hookean ? ".neo_hookean" : ".linear"), &layer.youngs_pa, &layer.poisson,
+          layer.neo_hookean ? &layer.stiffening : nullptr));
       if (!m->layers.empty() && m->layers.front().neo_hookean != layer.neo_hookean) {
         return key_error(p, "layers must all be \"linear\" or all \"neo_hookean\"");
       }
@@ -168,7 +180,8 @@ Status parse_material(const Json& j, const std::filesystem::path& base, Material
   }
   m->kind = j.contains("linear") ? MaterialKind::kLinear : MaterialKind::kNeoHookean;
   const std::string sub = j.contains("linear") ? "linear" : "neo_hookean";
-  return parse_youngs_poisson(j[sub], p + "." + sub, &m->youngs_pa, &m->poisson);
+  return parse_youngs_poisson(j[sub], p + "." + sub, &m->youngs_pa, &m->poisson,
+                              m->kind == MaterialKind::kNeoHookean ? &m->stiffening : nullptr);
 }
 
 Status parse_probe(const Json& j, const std::filesystem::path& base, ProbeSpec* pr) {
@@ -360,13 +373,14 @@ Result<SimulationResult> run_neo_hookean(const Scene& scene, const TetMesh& mesh
   if (scene.material.kind == MaterialKind::kLayered) {
     std::vector<hyperelastic::MaterialLayer> layers;
     for (const LayerSpec& l : scene.material.layers) {
-      layers.push_back({l.z_min_m, l.z_max_m, {l.youngs_pa, l.poisson, 0.0}});
+      layers.push_back({l.z_min_m, l.z_max_m, {l.youngs_pa, l.poisson, l.stiffening}});
     }
     HC_ASSIGN_OR_RETURN(materials, hyperelastic::layered_materials(mesh, layers));
     e_ref = scene.material.layers.front().youngs_pa;
     nu_ref = scene.material.layers.front().poisson;
   } else {
-    materials.push_back({scene.material.youngs_pa, scene.material.poisson, 0.0});
+    materials.push_back(
+        {scene.material.youngs_pa, scene.material.poisson, scene.material.stiffening});
   }
   HC_ASSIGN_OR_RETURN(hyperelastic::NeoHookeanModel model,
                       hyperelastic::NeoHookeanModel::create(mesh, materials));

@@ -22,7 +22,8 @@ TEST(MaterialCli, SynthFitEvaluateRoundTrip) {
   hc::testing::ScratchDir dir;
   std::ofstream(dir / "scene.json")
       << R"({"specimen": {"box_m": [0.04, 0.04, 0.02], "cells": [4, 4, 2]},
-    "material": {"neo_hookean": {"youngs_pa": 60000, "poisson": 0.3}}, "fixed": "bottom",
+    "material": {"neo_hookean": {"youngs_pa": 60000, "poisson": 0.3, "stiffening": 4}},
+    "fixed": "bottom",
     "probe": {"shape": "sphere", "radius_m": 0.01, "position_m": [0.02, 0.02, 0.03],
               "direction": [0, 0, -1]},
     "load": {"force_n": 2.0}, "steps": 3})";
@@ -42,14 +43,15 @@ TEST(MaterialCli, SynthFitEvaluateRoundTrip) {
   const auto ej = nlohmann::json::parse(e.out);
   for (const char* key : {"rms_error_m", "max_error_m", "error_rel_max_disp"})
     EXPECT_TRUE(ej.contains(key)) << key;
-  // Noise-free examples of a neo-Hookean block: reproduced within 1 % of the max displacement.
+  // Noise-free examples of a strain-stiffening neo-Hookean block: reproduced within 1 % of the
+  // max displacement.
   EXPECT_LT(ej["error_rel_max_disp"].get<double>(), 0.01);
 
   // --joint (one material fitted to all examples at once, 13 RBF centres per tet: zero strain
   // and the quadratic-like stiffening's ±c e_k, fit.h): the same
-  // homogeneous block, also within 1 %.
+  // homogeneous block (here with the weak Poisson prior of noisy fits), also within 1 %.
   CliRun jf = hardcopy("fit heterogeneous --samples " + d + "/s.json -o " + d +
-                       "/mj.json --regularization 1e-6 --joint --json");
+                       "/mj.json --regularization 1e-6 --poisson-prior 0.1 --joint --json");
   ASSERT_EQ(jf.exit_code, 0) << jf.out;
   const auto jj = nlohmann::json::parse(jf.out);
   EXPECT_EQ(jj["joint"], true);
@@ -72,6 +74,10 @@ TEST(MaterialCli, SynthFitEvaluateRoundTrip) {
                      "/mk.json --joint --joint-adjacency edge")
                 .exit_code,
             2);
+  EXPECT_EQ(hardcopy("fit heterogeneous --samples " + d + "/s.json -o " + d +
+                     "/mk.json --poisson-prior -0.1")
+                .exit_code,
+            2);
   EXPECT_FALSE(std::filesystem::exists(dir / "mk.json"));
 }
 
@@ -87,7 +93,8 @@ TEST(MaterialCli, BadInputExitsTwoAndWritesNothing) {
       2);
   std::ofstream(dir / "scene.json")
       << R"({"specimen": {"box_m": [0.04, 0.04, 0.02], "cells": [2, 2, 1]},
-    "material": {"neo_hookean": {"youngs_pa": 60000, "poisson": 0.3}}, "fixed": "bottom",
+    "material": {"neo_hookean": {"youngs_pa": 60000, "poisson": 0.3, "stiffening": 4}},
+    "fixed": "bottom",
     "probe": {"shape": "sphere", "radius_m": 0.01, "position_m": [0.02, 0.02, 0.03],
               "direction": [0, 0, -1]}, "load": {"depth_m": 0.001}})";
   EXPECT_EQ(hardcopy("synth " + d + "/scene.json -o " + d + "/s.json").exit_code, 2);

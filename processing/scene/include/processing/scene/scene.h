@@ -3,8 +3,9 @@
 //              | {"box_m": [x, y, z], "cells": [nx, ny, nz]}            structured (Kuhn) box
 //              | {"mesh": PATH, "scale_to_m": s, "max_tet_volume_m3": v} closed surface -> TetGen
 //    "material": {"linear": {"youngs_pa": E, "poisson": nu}}            co-rotational FEM
-//              | {"neo_hookean": {"youngs_pa": E, "poisson": nu}}       hyperelastic reference
-//              model | [{"z_m": [z0, z1], "linear" | "neo_hookean": {...}}, ...]  layers (all of
+//              | {"neo_hookean": {"youngs_pa": E, "poisson": nu, "stiffening": b}}  hyperelastic
+//              reference model (b >= 0 optional, default 0: see hyperelastic/neo_hookean.h)
+//              | [{"z_m": [z0, z1], "linear" | "neo_hookean": {...}}, ...]  layers (all of
 //              one kind) | {"file": MATERIAL.json}                                data-driven (RBF)
 //              material
 //    "fixed": "bottom" | [node, ...],
@@ -48,12 +49,14 @@ struct LayerSpec {
   bool neo_hookean = false;
   double youngs_pa = 0;
   double poisson = 0;
+  double stiffening = 0;  // neo-Hookean strain stiffening β (dimensionless; 0 for linear)
 };
 
 struct MaterialSpec {
   MaterialKind kind = MaterialKind::kLinear;
   double youngs_pa = 0;
   double poisson = 0;
+  double stiffening = 0;          // kNeoHookean: strain stiffening β (dimensionless)
   std::vector<LayerSpec> layers;  // kLayered
   std::filesystem::path file;     // kFile
 };
