@@ -366,7 +366,8 @@ void add_material_commands(CLI::App& app, const GlobalOptions& global, int* exit
       ->capture_default_str();
   h->add_option("--joint-adjacency", fa->joint_adjacency,
                 "With --joint: the tets its Laplacian couples (face neighbours; vertex: the "
-                "thesis's per-example stencil, wider, which blurs jumps between layers)")
+                "thesis's per-example stencil, wider, which blurs jumps between layers; its "
+                "tuned --joint-regularization is 0.03)")
       ->check(CLI::IsMember({"face", "vertex"}))
       ->capture_default_str();
   h->callback([&global, fa, exit_code] { *exit_code = run_fit(global, *fa); });

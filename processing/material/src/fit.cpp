@@ -14,6 +14,7 @@
 #include <chrono>
 #include <cmath>
 
+#include "processing/fem/blas_threads.h"
 #include "processing/material/fit.h"
 
 namespace hc::material {
@@ -547,6 +548,7 @@ Result<Material> fit_joint_material(const std::vector<ExampleProblem*>& problems
   if (strains->size() != n || start.size() != n)
     return invalid_argument("fit_joint_material: one strain matrix and start per example expected");
   const auto t0 = Clock::now();
+  const fem::SingleThreadedBlasScope blas;  // the examples are solved in parallel (TBB)
   const Eigen::Index t = problems[0]->num_elements();
   for (std::size_t i = 0; i < n; ++i)
     if (problems[i]->num_elements() != t || (*strains)[i].rows() != t ||

@@ -11,6 +11,7 @@
 #include <mutex>
 #include <optional>
 
+#include "processing/fem/blas_threads.h"
 #include "processing/fem/incremental.h"
 #include "processing/material/fit.h"
 #include "processing/material/rbf_fit.h"
@@ -39,6 +40,8 @@ Result<Material> fit_heterogeneous(const Samples& samples, const HeterogeneousFi
   const auto t0 = Clock::now();
   const std::size_t n = samples.examples.size();
   const Eigen::Index t = samples.mesh.num_tets();
+  // One factorisation per example on every core: OpenBLAS's threads would oversubscribe them.
+  const fem::SingleThreadedBlasScope blas;
   if (options.joint.enabled) {
     // Fail before the per-example fits when the joint fit's Jacobian would be too large.
     double rows = 0;
@@ -177,6 +180,7 @@ Result<EvaluateSummary> evaluate_material(const fem::MaterialModel& material,
                                         material.num_elements(), samples.mesh.num_tets()));
   const auto t0 = Clock::now();
   const std::size_t n = samples.examples.size();
+  const fem::SingleThreadedBlasScope blas;  // as in fit_heterogeneous
   EvaluateSummary out;
   out.example_rms_error_m.assign(n, 0);
   out.positions.resize(n);

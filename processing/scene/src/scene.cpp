@@ -158,10 +158,10 @@ Status parse_material(const Json& j, const std::filesystem::path& base, Material
         return key_error(lp, "needs exactly one of \"linear\" and \"neo_hookean\"");
       }
       layer.neo_hookean = l.contains("neo_hookean");
-      HC_RETURN_IF_ERROR(parse_youngs_poisson(
-          layer.neo_hookean ? l["neo_hookean"] : l["linear"],
-          lp + (layer.neo_hookean ? ".neo_hookean" : ".linear"), &layer.youngs_pa, &layer.poisson,
-          layer.neo_hookean ? &layer.stiffening : nullptr));
+      HC_RETURN_IF_ERROR(parse_youngs_poisson(layer.neo_hookean ? l["neo_hookean"] : l["linear"],
+                                              lp + (layer.neo_hookean ? ".neo_hookean" : ".linear"),
+                                              &layer.youngs_pa, &layer.poisson,
+                                              layer.neo_hookean ? &layer.stiffening : nullptr));
       if (!m->layers.empty() && m->layers.front().neo_hookean != layer.neo_hookean) {
         return key_error(p, "layers must all be \"linear\" or all \"neo_hookean\"");
       }

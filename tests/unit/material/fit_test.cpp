@@ -170,8 +170,7 @@ TEST(Laplacian, UmbrellaWeightsCountVertexNeighbours) {
   EXPECT_TRUE(l.isApprox(expected));
   EXPECT_NEAR(l.rowwise().sum().norm(), 0, 1e-15);  // constants are in the null space
   // Face adjacency: only tets 0 and 1 share a face (1, 2, 3); tet 2 has no face neighbour.
-  const Eigen::MatrixXd lf =
-      Eigen::MatrixXd(tet_umbrella_laplacian(m, TetAdjacency::kFace));
+  const Eigen::MatrixXd lf = Eigen::MatrixXd(tet_umbrella_laplacian(m, TetAdjacency::kFace));
   expected << 1, -1, 0, -1, 1, 0, 0, 0, 0;
   EXPECT_TRUE(lf.isApprox(expected)) << lf;
 }

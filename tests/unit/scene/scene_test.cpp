@@ -182,7 +182,9 @@ TEST(Simulate, FlatPunchOverTheWholeTopMatchesHookesLawForBothModels) {
   // strain β = 8 still gives Hooke's law within the same 1.5 %; at 15 % it stiffens the block.
   auto j = base();
   j["material"] = {{"neo_hookean", {{"youngs_pa", kE}, {"poisson", 0.0}, {"stiffening", 8}}}};
-  j["probe"] = {{"shape", "flat"}, {"radius_m", 0.1}, {"position_m", {0.02, 0.02, 0.03}},
+  j["probe"] = {{"shape", "flat"},
+                {"radius_m", 0.1},
+                {"position_m", {0.02, 0.02, 0.03}},
                 {"direction", {0, 0, -1}}};
   j["load"] = {{"depth_m", kD}};
   auto small = simulate(*parse(j));

@@ -167,7 +167,8 @@ Status fit_example(ExampleProblem* problem, const std::vector<LambdaAlpha>& init
 // i.e. the sum of the n examples' Eq. 4.10 objectives with one shared material (p_i: its (λ, α) at
 // example i's element strains ε_i, ε_ref the largest strain norm, γ_J = regularization_scale ·
 // ParameterFitOptions::regularization, κ = stiffening_regularization_scale, w_ν the Poisson
-// prior, L_F the umbrella Laplacian over FACE neighbours; see JointRefinementOptions::adjacency). λ0, k and m are smooth across the stiffened region under a probe, so the smoothing no
+// prior, L_F the umbrella Laplacian over FACE neighbours, see JointRefinementOptions::adjacency).
+// λ0, k and m are smooth across the stiffened region under a probe, so the smoothing no
 // longer fights it, and every element's parameters are estimated from all examples that strain it
 // (the Gauss–Newton weighting). The factor's floor ½ keeps a softening element from collapsing. The
 // strains are held during an LM run (Appendix A's Jacobian with the chain rule through λ0, ν, k, m)
