@@ -13,6 +13,7 @@
 #include <Eigen/SparseCore>
 #include <chrono>
 #include <cmath>
+#include <optional>
 
 #include "processing/fem/blas_threads.h"
 #include "processing/material/fit.h"
@@ -548,7 +549,8 @@ Result<Material> fit_joint_material(const std::vector<ExampleProblem*>& problems
   if (strains->size() != n || start.size() != n)
     return invalid_argument("fit_joint_material: one strain matrix and start per example expected");
   const auto t0 = Clock::now();
-  const fem::SingleThreadedBlasScope blas;  // the examples are solved in parallel (TBB)
+  std::optional<fem::SingleThreadedBlasScope> blas;  // as in fit_heterogeneous (pipeline.cpp)
+  if (n > 1) blas.emplace();
   const Eigen::Index t = problems[0]->num_elements();
   for (std::size_t i = 0; i < n; ++i)
     if (problems[i]->num_elements() != t || (*strains)[i].rows() != t ||

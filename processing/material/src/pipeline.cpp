@@ -40,8 +40,10 @@ Result<Material> fit_heterogeneous(const Samples& samples, const HeterogeneousFi
   const auto t0 = Clock::now();
   const std::size_t n = samples.examples.size();
   const Eigen::Index t = samples.mesh.num_tets();
-  // One factorisation per example on every core: OpenBLAS's threads would oversubscribe them.
-  const fem::SingleThreadedBlasScope blas;
+  // One factorisation per example on every core: OpenBLAS's threads would oversubscribe them
+  // (one example keeps them: nothing else runs beside its factorisations).
+  std::optional<fem::SingleThreadedBlasScope> blas;
+  if (n > 1) blas.emplace();
   if (options.joint.enabled) {
     // Fail before the per-example fits when the joint fit's Jacobian would be too large.
     double rows = 0;
@@ -180,7 +182,8 @@ Result<EvaluateSummary> evaluate_material(const fem::MaterialModel& material,
                                         material.num_elements(), samples.mesh.num_tets()));
   const auto t0 = Clock::now();
   const std::size_t n = samples.examples.size();
-  const fem::SingleThreadedBlasScope blas;  // as in fit_heterogeneous
+  std::optional<fem::SingleThreadedBlasScope> blas;  // as in fit_heterogeneous
+  if (n > 1) blas.emplace();
   EvaluateSummary out;
   out.example_rms_error_m.assign(n, 0);
   out.positions.resize(n);

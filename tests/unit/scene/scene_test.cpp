@@ -7,6 +7,7 @@
 #include <sys/wait.h>
 
 #include <array>
+#include <cmath>
 #include <cstdio>
 #include <fstream>
 #include <functional>
@@ -171,7 +172,9 @@ TEST(Simulate, FlatPunchOverTheWholeTopMatchesHookesLawForBothModels) {
   for (const char* model : {"linear", "neo_hookean"}) {
     auto j = base();
     j["material"] = {{model, {{"youngs_pa", kE}, {"poisson", 0.0}}}};
-    j["probe"] = {{"shape", "flat"}, {"radius_m", 0.1}, {"position_m", {0.02, 0.02, 0.03}},
+    j["probe"] = {{"shape", "flat"},
+                  {"radius_m", 0.1},
+                  {"position_m", {0.02, 0.02, 0.03}},
                   {"direction", {0, 0, -1}}};
     j["load"] = {{"depth_m", kD}};
     auto r = simulate(*parse(j));
@@ -179,9 +182,14 @@ TEST(Simulate, FlatPunchOverTheWholeTopMatchesHookesLawForBothModels) {
     EXPECT_NEAR(r->force_n, expected, 0.015 * expected) << model;
   }
   // The strain-stiffening term is quartic in the strain (hyperelastic/neo_hookean.h): at 1 %
-  // strain β = 8 still gives Hooke's law within the same 1.5 %; at 15 % it stiffens the block.
+  // strain β = 8 still gives Hooke's law within the same 1.5 %. At 15 % the closed form of the
+  // same uniaxial strain (ν = 0, so λ = 0 and the free sides carry no stress at lateral stretch
+  // 1): with stretch s, ψ = μ/2 (s² − 1) − μ ln s + β μ/4 g², g = s² − 1 − 2 ln s, the nominal
+  // stress is dψ/ds = μ (s − 1/s)(1 + β g), so F = A μ (1/s − s)(1 + β g): 26.12 N plain and
+  // 1.380x that with β = 8.
+  constexpr double kS = 0.85, kBeta = 8;
   auto j = base();
-  j["material"] = {{"neo_hookean", {{"youngs_pa", kE}, {"poisson", 0.0}, {"stiffening", 8}}}};
+  j["material"] = {{"neo_hookean", {{"youngs_pa", kE}, {"poisson", 0.0}, {"stiffening", kBeta}}}};
   j["probe"] = {{"shape", "flat"},
                 {"radius_m", 0.1},
                 {"position_m", {0.02, 0.02, 0.03}},
@@ -190,12 +198,15 @@ TEST(Simulate, FlatPunchOverTheWholeTopMatchesHookesLawForBothModels) {
   auto small = simulate(*parse(j));
   ASSERT_TRUE(small.ok()) << small.status().to_string();
   EXPECT_NEAR(small->force_n, expected, 0.015 * expected);
-  j["load"] = {{"depth_m", 0.15 * kH}};
+  const double g = kS * kS - 1 - 2 * std::log(kS);
+  const double plain_n = kA * (kE / 2) * (1 / kS - kS);
+  j["load"] = {{"depth_m", (1 - kS) * kH}};
   auto stiff = simulate(*parse(j));
   j["material"]["neo_hookean"]["stiffening"] = 0;
   auto plain = simulate(*parse(j));
   ASSERT_TRUE(stiff.ok() && plain.ok());
-  EXPECT_GT(stiff->force_n, 1.1 * plain->force_n);
+  EXPECT_NEAR(plain->force_n, plain_n, 0.01 * plain_n);
+  EXPECT_NEAR(stiff->force_n, plain_n * (1 + kBeta * g), 0.01 * plain_n * (1 + kBeta * g));
 }
 
 TEST(Simulate, BadScenesFailClearly) {

@@ -5,8 +5,8 @@
 // and its idle workers spin in sched_yield against the busy ones: perf on bench_material_fit
 // (1,800 tets, 48 examples) showed ~26 % of all samples in sched_yield and exec_blas_async, and
 // the evaluation took 71 s against 11.7 s with OPENBLAS_NUM_THREADS=1. Work that is parallel over
-// many independent factorisations runs inside a SingleThreadedBlasScope; one large factorisation
-// (a 100k-tet step) keeps OpenBLAS's threads.
+// many independent factorisations runs inside a SingleThreadedBlasScope; a single example or one
+// large factorisation (a 100k-tet step) keeps OpenBLAS's threads.
 //
 // OpenBLAS's thread count is a process-wide setting (openblas_set_num_threads), so the scope is
 // too: the first live scope sets it to 1 and the last one to end restores the previous count.
