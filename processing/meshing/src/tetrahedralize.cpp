@@ -150,9 +150,9 @@ Status TetrahedralizeOptions::validate() const {
         (max_radius_edge_ratio == 0 || max_radius_edge_ratio >= kMinRadiusEdgeRatio)))
     return invalid_argument(fmt::format(
         "quality (max radius-edge ratio) {} must be 0 (off) or >= {} (Delaunay refinement is "
-        "proven to terminate for bounds >= 2; below {} TetGen keeps adding points without end: "
-        "1.00-1.03 measured never finishing)",
-        max_radius_edge_ratio, kMinRadiusEdgeRatio, kMinRadiusEdgeRatio));
+        "proven to terminate for bounds >= 2; 1.00-1.03 were seen never finishing, 1.1 meshes "
+        "pinion.off in 34 s)",
+        max_radius_edge_ratio, kMinRadiusEdgeRatio));
   if (!(std::isfinite(min_dihedral_deg) && min_dihedral_deg >= 0 && min_dihedral_deg < 30))
     return invalid_argument(
         fmt::format("min dihedral angle {} must be in [0, 30) degrees", min_dihedral_deg));

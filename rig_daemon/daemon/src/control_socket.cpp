@@ -7,6 +7,7 @@
 #include <sys/un.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cerrno>
 #include <chrono>
 #include <cstring>
@@ -181,10 +182,11 @@ void ControlServer::accept_all(TimePoint now) {
     const int cfd = ::accept4(listen_fd_, nullptr, nullptr, SOCK_CLOEXEC | SOCK_NONBLOCK);
     if (cfd < 0) return;
     std::lock_guard lock(mutex_);
-    const std::size_t open = connections_.size();
-    // Connections past the reserve are answered and closed (each lingers at most a moment, so
-    // this bound keeps a flood from growing the set without limit).
-    if (open >= limits_.max_connections + 2 * limits_.reserved_connections + 16) {
+    // Connections being closed (answered, lingering a moment for the client to read) do not hold
+    // a slot; the hard bound on all of them keeps a flood from growing the set without limit.
+    const auto open = static_cast<std::size_t>(std::count_if(
+        connections_.begin(), connections_.end(), [](const auto& c) { return !c->closing; }));
+    if (connections_.size() >= limits_.max_connections + 2 * limits_.reserved_connections + 16) {
       ::close(cfd);
       continue;
     }

@@ -21,7 +21,7 @@ pid_t dead_pid() {
   return pid;
 }
 
-bool exists(const std::filesystem::path& p) { return std::filesystem::exists(p); }
+bool present(const std::filesystem::path& p) { return std::filesystem::exists(p); }
 
 TEST(FileIo, TemporariesOfDeadWritersAreRemovedByTheNextWrite) {
   testing::ScratchDir dir;
@@ -38,13 +38,13 @@ TEST(FileIo, TemporariesOfDeadWritersAreRemovedByTheNextWrite) {
   { std::ofstream(dir / ("short.tmp-" + dead + "-123")) << "user file"; }
 
   ASSERT_TRUE(write_file_atomic(dir / "out.txt", "done").ok());
-  EXPECT_TRUE(exists(dir / "out.txt"));
-  EXPECT_FALSE(exists(dir / ("part.3mf.tmp-" + dead + "-0123abcd")));
-  EXPECT_FALSE(exists(dir / ("f_000001.png.tmp-" + dead + "-deadbeef")));
-  EXPECT_FALSE(exists(dir / ("cam0_image.tmp-" + dead + "-00c0ffee")));
-  EXPECT_TRUE(exists(dir / ("other.stl.tmp-" + live + "-11111111")));
-  EXPECT_TRUE(exists(dir / "notes.tmp-abc"));
-  EXPECT_TRUE(exists(dir / ("short.tmp-" + dead + "-123")));
+  EXPECT_TRUE(present(dir / "out.txt"));
+  EXPECT_FALSE(present(dir / ("part.3mf.tmp-" + dead + "-0123abcd")));
+  EXPECT_FALSE(present(dir / ("f_000001.png.tmp-" + dead + "-deadbeef")));
+  EXPECT_FALSE(present(dir / ("cam0_image.tmp-" + dead + "-00c0ffee")));
+  EXPECT_TRUE(present(dir / ("other.stl.tmp-" + live + "-11111111")));
+  EXPECT_TRUE(present(dir / "notes.tmp-abc"));
+  EXPECT_TRUE(present(dir / ("short.tmp-" + dead + "-123")));
   // Its own temporary is gone too, and its name carries this process's id.
   const std::string mine = temp_path_for(dir / "x.vtu").filename().string();
   EXPECT_EQ(mine.rfind("x.vtu.tmp-" + std::to_string(::getpid()) + "-", 0), 0u) << mine;
@@ -68,7 +68,7 @@ TEST(FileIo, FileGroupAppearsTogetherOrNotAtAll) {
   for (std::size_t i = 0; i < 3; ++i) ASSERT_TRUE(write_file_atomic(g.staged(i), "x").ok());
   ASSERT_TRUE(g.commit().ok());
   for (const char* ext : {".node", ".ele", ".vtu"})
-    EXPECT_TRUE(exists(dir / (std::string("mesh") + ext)));
+    EXPECT_TRUE(present(dir / (std::string("mesh") + ext)));
 
   // The last rename fails (a folder is in the way): the two already renamed are taken back.
   testing::ScratchDir dir2;
@@ -77,8 +77,8 @@ TEST(FileIo, FileGroupAppearsTogetherOrNotAtAll) {
   AtomicFileGroup h(dir2 / "mesh", {".node", ".ele", ".vtu"});
   for (std::size_t i = 0; i < 3; ++i) ASSERT_TRUE(write_file_atomic(h.staged(i), "x").ok());
   EXPECT_FALSE(h.commit().ok());
-  EXPECT_FALSE(exists(dir2 / "mesh.node"));
-  EXPECT_FALSE(exists(dir2 / "mesh.ele"));
+  EXPECT_FALSE(present(dir2 / "mesh.node"));
+  EXPECT_FALSE(present(dir2 / "mesh.ele"));
 }
 
 }  // namespace

@@ -250,6 +250,9 @@ TEST(Rigd, EstopFromAHalfClosedClientStopsTheCapture) {
   ScratchDir dir;
   Rigd rigd(dir.path());
   ASSERT_TRUE(std::filesystem::exists(rigd.socket()));
+  // The socket file exists from bind(); wait until rigd answers.
+  for (int i = 0; i < 200 && !status_of(rigd).contains("daemon"); ++i)
+    std::this_thread::sleep_for(std::chrono::milliseconds(25));
   // Requests from clients that write one line and half-close (`echo ... | socat - UNIX-CONNECT:`)
   // are all answered (before the fix: status 18/20).
   for (int i = 0; i < 20; ++i) {
@@ -289,6 +292,8 @@ TEST(Rigd, SixtyFourIdleClientsDoNotLockOutEstop) {
   ScratchDir dir;
   Rigd rigd(dir.path());
   ASSERT_TRUE(std::filesystem::exists(rigd.socket()));
+  for (int i = 0; i < 200 && !status_of(rigd).contains("daemon"); ++i)
+    std::this_thread::sleep_for(std::chrono::milliseconds(25));
   std::vector<std::unique_ptr<hc::testing::RawClient>> idle;
   for (int i = 0; i < 64; ++i) {
     idle.push_back(std::make_unique<hc::testing::RawClient>(rigd.socket()));
