@@ -3,8 +3,11 @@
 #include <fmt/format.h>
 
 #include <Eigen/Dense>
+#include <algorithm>
+#include <array>
 #include <cmath>
 #include <filesystem>
+#include <map>
 #include <string>
 #include <vector>
 
@@ -27,19 +30,51 @@ struct SimulateArgs {
 // specimen stays far below): 1e300 N used to run until "unreachable probe".
 constexpr double kMaxProbeForceN = 1e6;
 
-// The index of a tet that holds `p` strictly inside, or -1.
+// Whether `p` lies on the triangle (a, b, c), within `tol` (a length).
+bool on_triangle(const Eigen::Vector3d& p, const Eigen::Vector3d& a, const Eigen::Vector3d& b,
+                 const Eigen::Vector3d& c, double tol) {
+  const Eigen::Vector3d n = (b - a).cross(c - a);
+  const double area2 = n.norm();
+  if (!(area2 > 0) || std::abs(n.dot(p - a)) > tol * area2) return false;
+  // Barycentric coordinates from the sub-triangle areas (signed along n).
+  const double u = n.dot((b - p).cross(c - p)) / (area2 * area2);
+  const double v = n.dot((c - p).cross(a - p)) / (area2 * area2);
+  const double rel = tol / std::sqrt(area2);
+  return u >= -rel && v >= -rel && 1 - u - v >= -rel;
+}
+
+// A tet that holds `p` in its interior or on a face shared with another tet, or -1: a probe whose
+// reference point is there starts inside the specimen. On the boundary surface is touching, not
+// inside (a flat probe at contact).
 Eigen::Index tet_containing(const TetMesh& mesh, const Eigen::Vector3d& p) {
-  for (Eigen::Index t = 0; t < mesh.num_tets(); ++t) {
+  static constexpr int kFaces[4][3] = {{1, 2, 3}, {0, 2, 3}, {0, 1, 3}, {0, 1, 2}};
+  const double tol =
+      1e-9 * (mesh.nodes.colwise().maxCoeff() - mesh.nodes.colwise().minCoeff()).norm();
+  Eigen::Index hit = -1;
+  for (Eigen::Index t = 0; t < mesh.num_tets() && hit < 0; ++t) {
     const Eigen::Vector3d a = mesh.nodes.row(mesh.tets(t, 0)).transpose();
     Eigen::Matrix3d m;
     for (int k = 0; k < 3; ++k) m.col(k) = mesh.nodes.row(mesh.tets(t, k + 1)).transpose() - a;
-    const double det = m.determinant();
-    if (!(std::abs(det) > 0)) continue;
+    if (!(std::abs(m.determinant()) > 0)) continue;
     const Eigen::Vector3d l = m.inverse() * (p - a);
-    constexpr double kInside = 1e-9;  // on a face or edge counts as outside (touching)
-    if (l.minCoeff() > kInside && l.sum() < 1 - kInside) return t;
+    constexpr double kEps = 1e-9;
+    if (l.minCoeff() >= -kEps && l.sum() <= 1 + kEps) hit = t;
   }
-  return -1;
+  if (hit < 0) return -1;
+  std::map<std::array<int, 3>, int> faces;  // boundary faces: used by one tet
+  for (Eigen::Index t = 0; t < mesh.num_tets(); ++t)
+    for (const auto& f : kFaces) {
+      std::array<int, 3> key = {mesh.tets(t, f[0]), mesh.tets(t, f[1]), mesh.tets(t, f[2])};
+      std::sort(key.begin(), key.end());
+      ++faces[key];
+    }
+  for (const auto& [f, uses] : faces) {
+    if (uses != 1) continue;
+    if (on_triangle(p, mesh.nodes.row(f[0]).transpose(), mesh.nodes.row(f[1]).transpose(),
+                    mesh.nodes.row(f[2]).transpose(), tol))
+      return -1;
+  }
+  return hit;
 }
 
 // Non-finite numbers in a result mean the solve broke down (no equilibrium), never an answer.
