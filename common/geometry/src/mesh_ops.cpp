@@ -1,5 +1,5 @@
-// The only translation unit of hardcopy_fabrication that includes CGAL (see cgal_mesh_ops.h).
-#include "cgal_mesh_ops.h"
+// CGAL behind geometry/mesh_ops.h.
+#include "geometry/mesh_ops.h"
 
 #include <CGAL/Exact_predicates_inexact_constructions_kernel.h>
 #include <CGAL/Polygon_mesh_processing/connected_components.h>
@@ -30,7 +30,7 @@
 #include <string_view>
 #include <utility>
 
-namespace hc::fabrication::cgal_ops {
+namespace hc::geometry {
 namespace {
 
 namespace PMP = CGAL::Polygon_mesh_processing;
@@ -628,4 +628,4 @@ Status resolve_self_intersections(const ResolveOptions& options, TriangleMesh* m
       .status();
 }
 
-}  // namespace hc::fabrication::cgal_ops
+}  // namespace hc::geometry
