@@ -66,10 +66,14 @@ double cpu_seconds(pid_t pid) {
   return (std::stod(fields[11]) + std::stod(fields[12])) / ticks;
 }
 
+// Linear interpolation between order statistics (the median of two values is their mean).
 double quantile(std::vector<double> v, double q) {
   if (v.empty()) return 0;
   std::sort(v.begin(), v.end());
-  return v[static_cast<std::size_t>(q * static_cast<double>(v.size() - 1))];
+  const double pos = q * static_cast<double>(v.size() - 1);
+  const auto i = static_cast<std::size_t>(pos);
+  if (i + 1 >= v.size()) return v.back();
+  return v[i] + (pos - static_cast<double>(i)) * (v[i + 1] - v[i]);
 }
 
 struct Run {

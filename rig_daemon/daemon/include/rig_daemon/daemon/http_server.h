@@ -86,7 +86,8 @@ class HttpServer {
 
 // One event-stream snapshot: {"seq", "t_ns" (daemon clock), "state", "session" (progress),
 // "time_left_s", "force": [[t_ns, |F|, Fz]...] since the previous snapshot, "arm", "safety",
-// "thumbnails": {camera: sequence}, "cycle"; every `devices_every`-th also "devices"}.
+// "thumbnails": {camera: sequence}, "cycle"; with `with_devices` also "devices" and
+// "last_session"}.
 Json live_snapshot(Daemon& daemon, std::int64_t& last_force_ns, bool with_devices);
 
 }  // namespace hc::rig
