@@ -65,7 +65,7 @@ try {
   await guest.waitForFunction(() => Number(document.body.dataset.updates) >= 1);
   out.guest = await guest.evaluate(async () => {
     const statuses = {};
-    for (const c of ["pause", "resume", "stop", "estop", "start"])
+    for (const c of ["pause", "resume", "stop", "estop", "reset", "start"])
       statuses[c] = (await fetch("/api/" + c, { method: "POST", body: c === "start" ? "protocol: automated" : undefined })).status;
     const wrong = (await fetch("/api/stop", { method: "POST", headers: { Authorization: "Bearer nope" } })).status;
     return { mode: document.getElementById("mode").textContent,

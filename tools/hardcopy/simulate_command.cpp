@@ -2,6 +2,8 @@
 // hardcopy validate fem: the FEM verification table (patch, cantilever, flat punch, sphere).
 #include <fmt/format.h>
 
+#include <Eigen/Dense>
+#include <cmath>
 #include <filesystem>
 #include <string>
 #include <vector>
@@ -21,12 +23,60 @@ struct SimulateArgs {
   bool json = false;
 };
 
+// A probe load past this is not a probe load (the rig's sensor reads 125 N; a press through any
+// specimen stays far below): 1e300 N used to run until "unreachable probe".
+constexpr double kMaxProbeForceN = 1e6;
+
+// The index of a tet that holds `p` strictly inside, or -1.
+Eigen::Index tet_containing(const TetMesh& mesh, const Eigen::Vector3d& p) {
+  for (Eigen::Index t = 0; t < mesh.num_tets(); ++t) {
+    const Eigen::Vector3d a = mesh.nodes.row(mesh.tets(t, 0)).transpose();
+    Eigen::Matrix3d m;
+    for (int k = 0; k < 3; ++k) m.col(k) = mesh.nodes.row(mesh.tets(t, k + 1)).transpose() - a;
+    const double det = m.determinant();
+    if (!(std::abs(det) > 0)) continue;
+    const Eigen::Vector3d l = m.inverse() * (p - a);
+    constexpr double kInside = 1e-9;  // on a face or edge counts as outside (touching)
+    if (l.minCoeff() > kInside && l.sum() < 1 - kInside) return t;
+  }
+  return -1;
+}
+
+// Non-finite numbers in a result mean the solve broke down (no equilibrium), never an answer.
+Status check_finite(const scene::SimulationResult& r) {
+  bool finite = std::isfinite(r.force_n) && std::isfinite(r.depth_m) &&
+                std::isfinite(r.max_displacement_m) && r.positions.allFinite();
+  for (const auto& s : r.steps)
+    finite = finite && std::isfinite(s.force_n) && std::isfinite(s.depth_m);
+  if (finite) return {};
+  return failed_precondition(fmt::format(
+      "the simulation gave non-finite values (force {} N, depth {} m, max displacement {} m): no "
+      "equilibrium was found",
+      r.force_n, r.depth_m, r.max_displacement_m));
+}
+
 int run_simulate(const GlobalOptions& global, const SimulateArgs& args) {
   Context ctx(global);
   Result<scene::Scene> sc = scene::read_scene(args.scene);
   if (!sc.ok()) return ctx.fail("simulate", sc.status());
+  if (sc->load.control == fem::LoadControl::kForce && sc->load.value > kMaxProbeForceN)
+    return ctx.fail("simulate", invalid_argument(fmt::format(
+                                    "{}: load.force_n {:g} N is not a probe load (at most {:g} N)",
+                                    args.scene, sc->load.value, kMaxProbeForceN)));
   Result<scene::SimulationResult> r = scene::simulate(*sc, ctx.progress());
   if (!r.ok()) return ctx.fail("simulate", r.status().with_context(args.scene));
+  if (sc->probe.shape != scene::ProbeSpec::Shape::kMesh) {
+    const Eigen::Index t = tet_containing(r->mesh, sc->probe.position_m);
+    if (t >= 0)
+      return ctx.fail(
+          "simulate",
+          invalid_argument(fmt::format(
+              "{}: probe.position_m ({:g}, {:g}, {:g}) is inside the specimen (tet {}): the probe "
+              "starts outside, touching or above the surface",
+              args.scene, sc->probe.position_m.x(), sc->probe.position_m.y(),
+              sc->probe.position_m.z(), t)));
+  }
+  if (Status s = check_finite(*r); !s.ok()) return ctx.fail("simulate", s.with_context(args.scene));
   if (!args.vtu.empty()) {
     VtuData data;
     data.positions = r->positions;
@@ -117,8 +167,9 @@ void add_simulate_commands(CLI::App& app, const GlobalOptions& global, int* exit
       "Simulate a probe indentation described by SCENE.json (specimen, material, fixed, probe, "
       "load, "
       "steps) with the co-rotational FEM or the neo-Hookean reference model.\nExit 0 on success, 1 "
-      "when no equilibrium is found, 2 on bad input (missing keys, NaN, inverted or degenerate "
-      "elements, unreachable probe).");
+      "when no equilibrium is found (also a probe that never reaches the specimen), 2 on bad input "
+      "(missing keys, NaN, out-of-range values, inverted or degenerate elements, a probe that "
+      "starts inside the specimen).");
   s->add_option("SCENE", sargs->scene, "Scene JSON file")->required();
   s->add_flag("--json", sargs->json,
               "Print one JSON object: force_n, depth_m, max_displacement_m, steps, nodes, tets, "

@@ -186,12 +186,15 @@ Json live_snapshot(Daemon& daemon, std::int64_t& last_force_ns, bool with_device
               {"workspace", cfg.workspace.to_json()},
               {"stall_timeout_s", cfg.stall_timeout_s},
               {"state", "ok"}};
-  const Json* trip = nullptr;
-  if (status.contains("session") && status["session"].contains("trip"))
-    trip = &status["session"]["trip"];
-  if (trip != nullptr) {
-    safety["trip"] = *trip;
-    safety["state"] = trip->value("kind", std::string("tripped"));
+  // A trip of the running session, else the latched safety stop (a trip or an estop leaves one
+  // until reset), else ok.
+  if (status.contains("session") && status["session"].contains("trip")) {
+    safety["trip"] = status["session"]["trip"];
+    safety["state"] = status["session"]["trip"].value("kind", std::string("tripped"));
+  }
+  if (status.contains("safety_stop") && status["safety_stop"].is_object()) {
+    safety["stop"] = status["safety_stop"];
+    if (safety["state"] == "ok") safety["state"] = status["safety_stop"].value("kind", std::string("stopped"));
   }
   j["safety"] = std::move(safety);
   j["thumbnails"] = live.thumbnail_sequences();
@@ -434,7 +437,8 @@ void HttpServer::Impl::add_routes() {
                                                       {"/api/pause", Command::kPause},
                                                       {"/api/resume", Command::kResume},
                                                       {"/api/stop", Command::kStop},
-                                                      {"/api/estop", Command::kEstop}};
+                                                      {"/api/estop", Command::kEstop},
+                                                      {"/api/reset", Command::kReset}};
   for (const auto& [path, command] : commands) {
     const Command c = command;
     server.Post(path, [this, c](const httplib::Request& req, httplib::Response& res) {

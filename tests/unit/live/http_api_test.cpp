@@ -123,7 +123,8 @@ TEST(LiveHttp, ControlNeedsTheTokenAndEstopStopsTheArmAtOnce) {
   ASSERT_TRUE(rig.daemon->start(long_press()).ok());
   ASSERT_TRUE(rig.wait_state("running"));
   auto c = rig.client();
-  for (const char* cmd : {"/api/pause", "/api/resume", "/api/stop", "/api/estop", "/api/start"}) {
+  for (const char* cmd :
+       {"/api/pause", "/api/resume", "/api/stop", "/api/estop", "/api/reset", "/api/start"}) {
     auto none = c.Post(cmd, "protocol: automated", "application/yaml");
     ASSERT_TRUE(none);
     EXPECT_EQ(none->status, 403) << cmd;
@@ -167,6 +168,13 @@ TEST(LiveHttp, ControlNeedsTheTokenAndEstopStopsTheArmAtOnce) {
   // went out no later than one cycle after the response, with slack for a loaded machine.
   EXPECT_GE(summary["trip"]["detected_ns"].get<std::int64_t>(), before);
   EXPECT_TRUE(summary.contains("cycle"));
+  // The estop leaves a safety stop: start is refused until reset (also over HTTP).
+  EXPECT_EQ(c.Post("/api/start", rig.bearer(), long_press().source_text, "application/yaml")->status,
+            409);
+  EXPECT_EQ(c.Post("/api/reset", httplib::Headers{}, "", "text/plain")->status, 403);
+  auto reset = c.Post("/api/reset", rig.bearer(), "", "text/plain");
+  EXPECT_EQ(reset->status, 200) << reset->body;
+  EXPECT_TRUE(rig.daemon->safety_stop().is_null());
 }
 
 TEST(LiveHttp, BadInputNeitherCrashesNorStallsTheCapture) {

@@ -10,7 +10,8 @@
 //   GET  /api/sessions          sessions on disk (newest first) with their summaries
 //   GET  /api/auth              200 with a valid token, 403 without (the page's read-only check)
 //   POST /api/start             body: the plan's YAML; ?name=PLAN.yaml names it in messages
-//   POST /api/{pause,resume,stop,estop}
+//   POST /api/{pause,resume,stop,estop,reset}   (reset clears the safety stop an estop or a trip
+//                               leaves, as `rigctl reset`)
 //
 // Reading is open to whoever can reach the address; every POST needs the header
 // `Authorization: Bearer TOKEN` with the token rigd writes to an owner-only file (403 and nothing
