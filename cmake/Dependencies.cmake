@@ -54,3 +54,8 @@ pkg_check_modules(ARAVIS REQUIRED IMPORTED_TARGET aravis-0.8)
 pkg_check_modules(LIBGPIOD REQUIRED IMPORTED_TARGET libgpiod)
 pkg_check_modules(LIBCAMERA REQUIRED IMPORTED_TARGET libcamera)
 find_package(PNG REQUIRED)
+
+# the lab's view: plots (Cairo: PNG and SVG surfaces), rigd's live page (cpp-httplib; Debian ships it
+# as a library whose pkg-config flags must match its build).
+pkg_check_modules(CAIRO REQUIRED IMPORTED_TARGET cairo)
+pkg_check_modules(HTTPLIB REQUIRED IMPORTED_TARGET cpp-httplib)

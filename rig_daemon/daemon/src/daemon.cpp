@@ -89,6 +89,8 @@ Result<Json> Daemon::start(const Plan& plan) {
   so.plan = plan;
   so.software_version = options_.software_version;
   so.on_event = options_.on_event;
+  so.live = live_;
+  live_->session_started();
   so.recorder.compression = options_.config.compression == "lz4"    ? recording::Compression::kLz4
                             : options_.config.compression == "none" ? recording::Compression::kNone
                                                                     : recording::Compression::kZstd;

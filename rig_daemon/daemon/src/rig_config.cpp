@@ -4,6 +4,7 @@
 #include <set>
 
 #include "common/file_io.h"
+#include "rig_daemon/daemon/http_server.h"
 
 namespace hc::rig {
 
@@ -14,6 +15,19 @@ Status DeviceConfig::read(ConfigNode node) {
   node.required("backend", backend);
   if (node.status().ok() && backend.empty()) node.error("backend", "expected a backend name");
   node.allow_unknown_keys();  // the backend's configure() checks the rest
+  return node.status();
+}
+
+Status HttpConfig::read(ConfigNode node) {
+  node.optional("enabled", enabled);
+  node.optional("allow_remote", allow_remote);
+  if (node.optional("listen", listen)) {
+    HttpOptions o;
+    if (Status s = parse_listen_address(listen, o); !s.ok()) node.error("listen", s.message());
+    else if (!allow_remote && !is_loopback_host(o.host))
+      node.error("listen", "'" + o.host + "' is not a loopback address; set allow_remote: true to "
+                           "serve the page to other machines");
+  }
   return node.status();
 }
 
@@ -53,6 +67,7 @@ Status RigConfig::read(ConfigNode node) {
   node.optional("stall_timeout_s", stall_timeout_s, Bounds::between(1e-3, 5.0));
   node.optional("compression", compression, {"zstd", "lz4", "none"});
   node.optional("seed", seed);
+  node.optional("http", http);
   if (node.status().ok()) {
     if (stall_timeout_s < control_period_s)
       node.error("stall_timeout_s", "must be at least control_period_s");
@@ -91,7 +106,9 @@ Json RigConfig::to_json() const {
               {"control_period_s", control_period_s},
               {"stall_timeout_s", stall_timeout_s},
               {"compression", compression},
-              {"seed", seed}};
+              {"seed", seed},
+              {"http", {{"enabled", http.enabled}, {"listen", http.listen},
+                        {"allow_remote", http.allow_remote}}}};
 }
 
 const std::string_view kEmbeddedDefaultRigConfig =

@@ -440,6 +440,7 @@ void Session::Impl::record_arm_state(const dev::ArmState& s) {
   recorder->write(ch_arm_state, s.host_ns, s.device_stamp_ns.value_or(s.host_ns),
                   static_cast<std::uint32_t>(s.sequence), to_bytes(dev::to_json(s)));
   last_arm = s;
+  if (opts.live) opts.live->set_arm(s);
 }
 
 Status Session::Impl::poll() {
@@ -494,6 +495,7 @@ Status Session::Impl::poll() {
         recent_force.push_back(norm3(s.force_n));
         if (recent_force.size() > kForceWindow) recent_force.pop_front();
       }
+      if (opts.live) opts.live->add_wrenches(ft_buf);
     }
     // The stall check right after the read: time spent below on other devices (simulated
     // cameras render their frames inside read()) is not a gap in the F/T stream.
@@ -515,6 +517,7 @@ Status Session::Impl::poll() {
       rec::encode_raw_image_view(stamp, cameras[i]->name(), f.width, f.height,
                                  dev::foxglove_encoding(f.format), f.stride_bytes,
                                  rec::ByteSpan(f.pixels.data(), f.pixels.size()), image_buf);
+      if (opts.live) opts.live->offer_frame(cameras[i]->name(), f);
       recorder->write(ch_cams[i], f.host_ns, stamp, static_cast<std::uint32_t>(f.frame_id),
                       image_buf);
       assoc->add_frame(cameras[i]->name(), f);
@@ -545,12 +548,14 @@ Status Session::Impl::poll() {
 }
 
 Status Session::Impl::cycle() {
+  const std::int64_t woke_ns = clock().now_ns();
   HC_RETURN_IF_ERROR(poll());
   update_progress(false);
   if (trip) return Status(StatusCode::kCancelled, trip->message);
   if (stop_requested) return Status(StatusCode::kCancelled, "stopped on request");
   const std::int64_t now = clock().now_ns();
   if (last_cycle_ns >= 0) max_cycle_gap_ns = std::max(max_cycle_gap_ns, now - last_cycle_ns);
+  if (opts.live && last_cycle_ns >= 0) opts.live->add_cycle(now - last_cycle_ns, now - woke_ns);
   last_cycle_ns = now;
   next_cycle_ns += period_ns;
   if (next_cycle_ns < now) next_cycle_ns = now + period_ns;  // fell behind: do not burst
@@ -955,6 +960,7 @@ Json Session::Impl::finish(Status run_status) {
                {"max_cycle_gap_ns", max_cycle_gap_ns}};
   if (trip) summary["trip"] = trip->to_json();
   if (!retract.is_null()) summary["retract"] = retract;
+  if (opts.live) summary["cycle"] = opts.live->cycle_json();
   rec::StringMap session_meta{
       {"state", std::string(to_string(final_state))}, {"reason", reason}, {"json", summary.dump()}};
   recorder->write_metadata(std::string(kMetadataSession), session_meta);

@@ -10,6 +10,14 @@ namespace hc::devices::sim {
 
 namespace hy = hc::hyperelastic;
 
+Status MaterialLayer::read(ConfigNode node) {
+  node.required("thickness_m", thickness_m, Bounds::positive());
+  node.optional("youngs_modulus_pa", youngs_modulus_pa, Bounds::positive());
+  node.optional("poisson_ratio", poisson_ratio, Bounds{0.0, 0.5, false, true});
+  node.optional("stiffening", stiffening, Bounds::non_negative());
+  return node.status();
+}
+
 Status HyperelasticSpecimenOptions::validate() const {
   hy::NeoHookeanMaterial m{youngs_modulus_pa, poisson_ratio, stiffening};
   HC_RETURN_IF_ERROR(m.validate());
@@ -25,6 +33,23 @@ Status HyperelasticSpecimenOptions::validate() const {
     return invalid_argument(
         "hyperelastic specimen: layers, depth_steps, max_depth_m, "
         "probe_radius_m, location_grid_m, contact stiffness must be > 0");
+  double total = 0;
+  const double cell = height_m / layers;
+  for (std::size_t i = 0; i < material_layers.size(); ++i) {
+    const MaterialLayer& l = material_layers[i];
+    const std::string where = "hyperelastic specimen: material_layers[" + std::to_string(i) + "]";
+    const hy::NeoHookeanMaterial material{l.youngs_modulus_pa, l.poisson_ratio, l.stiffening};
+    HC_RETURN_IF_ERROR(material.validate().with_context(where));
+    const double cells = l.thickness_m / cell;
+    if (!(l.thickness_m > 0) || std::abs(cells - std::round(cells)) > 1e-6 || cells < 0.5)
+      return invalid_argument(where + ".thickness_m: " + std::to_string(l.thickness_m) +
+                              " m is not a whole number of mesh cells (height_m / layers = " +
+                              std::to_string(cell) + " m)");
+    total += l.thickness_m;
+  }
+  if (!material_layers.empty() && std::abs(total - height_m) > 1e-9 * height_m + 1e-12)
+    return invalid_argument("hyperelastic specimen: material_layers add up to " +
+                            std::to_string(total) + " m, not height_m " + std::to_string(height_m));
   return {};
 }
 
@@ -58,9 +83,24 @@ Result<std::shared_ptr<HyperelasticSpecimen>> HyperelasticSpecimen::create(
       TetMesh mesh,
       hc::meshing::structured_box(
           Eigen::Vector3d(options.size_m.x(), options.size_m.y(), options.height_m), cells));
-  hy::NeoHookeanMaterial material{options.youngs_modulus_pa, options.poisson_ratio,
-                                  options.stiffening};
-  HC_ASSIGN_OR_RETURN(hy::NeoHookeanModel model, hy::NeoHookeanModel::create(mesh, {material}));
+  std::vector<hy::NeoHookeanMaterial> materials{
+      {options.youngs_modulus_pa, options.poisson_ratio, options.stiffening}};
+  if (!options.material_layers.empty()) {
+    // Each tet takes the layer its centroid lies in (interfaces fall on cell boundaries).
+    materials.clear();
+    for (Eigen::Index t = 0; t < mesh.num_tets(); ++t) {
+      double z = 0;
+      for (int k = 0; k < 4; ++k) z += 0.25 * mesh.nodes(mesh.tets(t, k), 2);
+      std::size_t layer = 0;
+      double top = options.material_layers[0].thickness_m;
+      while (z > top && layer + 1 < options.material_layers.size())
+        top += options.material_layers[++layer].thickness_m;
+      const MaterialLayer& l = options.material_layers[layer];
+      materials.push_back({l.youngs_modulus_pa, l.poisson_ratio, l.stiffening});
+    }
+  }
+  HC_ASSIGN_OR_RETURN(hy::NeoHookeanModel model,
+                      hy::NeoHookeanModel::create(mesh, std::move(materials)));
   std::shared_ptr<HyperelasticSpecimen> s(new HyperelasticSpecimen());
   s->options_ = options;
   s->impl_ = std::make_unique<Impl>(std::move(model));

@@ -75,6 +75,7 @@ Status WorldOptions::read(ConfigNode node) {
     s->optional("layers", hyperelastic.layers, Bounds::between(1, 64));
     s->optional("max_depth_m", hyperelastic.max_depth_m, Bounds::positive());
     s->optional("depth_steps", hyperelastic.depth_steps, Bounds::between(1, 200));
+    s->optional("material_layers", hyperelastic.material_layers);
     std::array<double, 2> c{specimen.center_m.x(), specimen.center_m.y()};
     std::array<double, 2> sz{specimen.size_m.x(), specimen.size_m.y()};
     s->optional("youngs_modulus_pa", specimen.youngs_modulus_pa, Bounds::positive());

@@ -15,6 +15,7 @@
 #include "common/json.h"
 #include "common/status.h"
 #include "rig_daemon/daemon/control_protocol.h"
+#include "rig_daemon/daemon/live_feed.h"
 #include "rig_daemon/daemon/rig.h"
 #include "rig_daemon/daemon/scheduler.h"
 
@@ -62,6 +63,8 @@ class Daemon {
   // The summary of the last finished session (null before the first).
   Json last_summary() const;
   Rig& rig() { return *rig_; }
+  // What the live page shows besides status(): forces, arm, thumbnails, cycle timing.
+  LiveFeed& live() { return *live_; }
 
  private:
   explicit Daemon(Options options) : options_(std::move(options)) {}
@@ -69,6 +72,7 @@ class Daemon {
 
   Options options_;
   std::unique_ptr<Rig> rig_;
+  std::shared_ptr<LiveFeed> live_ = std::make_shared<LiveFeed>();
   mutable std::mutex mutex_;
   std::condition_variable idle_cv_;
   std::unique_ptr<Session> session_;

@@ -16,6 +16,7 @@
 //   stall_timeout_s: 0.05          # no F/T sample for this long while the arm moves -> stop
 //   compression: zstd              # zstd | lz4 | none
 //   seed: 1                        # seed of the simulated world
+//   http: {listen: "127.0.0.1:7878", allow_remote: false, enabled: true}   # the live page
 //   world: {...}                   # options of the simulated world (devices/sim_world.h)
 //
 // `rigd` with no arguments uses kEmbeddedDefaultRigConfig (everything "sim").
@@ -47,6 +48,15 @@ struct DeviceConfig {
   Status read(ConfigNode node);
 };
 
+// The live page (http_server.h): where it listens; other machines may reach it only with
+// allow_remote (it is bound to loopback otherwise).
+struct HttpConfig {
+  bool enabled = true;
+  std::string listen = "127.0.0.1:7878";
+  bool allow_remote = false;
+  Status read(ConfigNode node);
+};
+
 struct RigConfig {
   std::vector<DeviceConfig> devices;  // in file order
   WorkspaceBox workspace;
@@ -58,6 +68,7 @@ struct RigConfig {
   double stall_timeout_s = 0.05;
   std::string compression = "zstd";
   std::uint64_t seed = 1;
+  HttpConfig http;
   std::string source_text;                 // the YAML as read (recorded in each session's metadata)
   std::string source_name;                 // file name, or "<embedded default>"
   std::shared_ptr<const Config> document;  // the parsed YAML (for the devices' configure())

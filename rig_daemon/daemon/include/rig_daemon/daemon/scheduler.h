@@ -31,6 +31,7 @@
 #include "common/json.h"
 #include "common/status.h"
 #include "rig_daemon/daemon/association.h"
+#include "rig_daemon/daemon/live_feed.h"
 #include "rig_daemon/daemon/plan.h"
 #include "rig_daemon/daemon/recorder.h"
 #include "rig_daemon/daemon/rig.h"
@@ -57,6 +58,8 @@ struct SessionOptions {
   // Progress and safety events (called on the session thread; must not block).
   std::function<void(std::string_view event, const Json& fields)> on_event;
   Recorder::Options recorder;
+  // The live page's feed (forces, arm, thumbnails, cycle timing); null: none.
+  std::shared_ptr<LiveFeed> live;
 };
 
 class Session {

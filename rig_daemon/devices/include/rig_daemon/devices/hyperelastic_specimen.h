@@ -16,10 +16,21 @@
 #include <utility>
 #include <vector>
 
+#include "common/config.h"
 #include "common/status.h"
 #include "rig_daemon/devices/specimen.h"
 
 namespace hc::devices::sim {
+
+// One layer of a layered specimen (thesis Ch. 5's stacked composites; a "hidden" layered material
+// the whole-loop demo captures and designs for), bottom first.
+struct MaterialLayer {
+  double thickness_m = 0.01;
+  double youngs_modulus_pa = 1.0e6;
+  double poisson_ratio = 0.45;
+  double stiffening = 1.0;
+  Status read(ConfigNode node);
+};
 
 struct HyperelasticSpecimenOptions {
   double youngs_modulus_pa = 1.0e6;
@@ -37,6 +48,9 @@ struct HyperelasticSpecimenOptions {
   int depth_steps = 12;
   double location_grid_m = 0.003;
   double contact_stiffness_n_per_m = 1e5;
+  // Bottom first; their thicknesses add up to height_m and each is a whole number of the mesh's
+  // cells through the height (height_m / layers). Empty: one material (the three keys above).
+  std::vector<MaterialLayer> material_layers;
   Status validate() const;
 };
 

@@ -47,7 +47,8 @@ struct WorldOptions {
   // Keys: seed, probe_radius_m, home_m [x, y, z], arm_speed_m_s, workspace_min_m, workspace_max_m,
   // max_speed_m_s, specimen {model: hertz|hyperelastic, youngs_modulus_pa, poisson_ratio,
   // stiffening, top_z_m, center_m, size_m, marker_spacing_m, marker_radius_m; hyperelastic only:
-  // height_m, layers, max_depth_m, depth_steps}, probe {visible, shaft_radius_m, shaft_length_m,
+  // height_m, layers, max_depth_m, depth_steps, material_layers [{thickness_m, youngs_modulus_pa,
+  // poisson_ratio, stiffening}, ...] bottom first}, probe {visible, shaft_radius_m, shaft_length_m,
   // marker_distances_m, marker_radius_m, grey, marker_grey} (sim_scene.h ProbeLook).
   Status read(ConfigNode node);
   Status validate() const;
