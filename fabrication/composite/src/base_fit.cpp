@@ -9,16 +9,15 @@
 #include <cmath>
 #include <optional>
 
+#include "clock.h"
 #include "fit_example.h"
 #include "processing/fem/blas_threads.h"
 
 namespace hc::composite {
 namespace {
 
-using Clock = std::chrono::steady_clock;
-double seconds_since(Clock::time_point t0) {
-  return std::chrono::duration<double>(Clock::now() - t0).count();
-}
+using detail::Clock;
+using detail::seconds_since;
 
 // Examples whose total forces lie within this relative distance share a force level (Table 5.8.1).
 constexpr double kForceLevelTolerance = 0.05;

@@ -177,6 +177,23 @@ Status ForwardOptions::validate() const {
   return {};
 }
 
+Status simulate_forces(fem::CorotationalFem* fem, const fem::MaterialModel& material,
+                       const MatrixX3d& forces, const ForwardOptions& options) {
+  fem::IncrementalOptions io;
+  io.steps = options.steps;
+  io.update_within_step = true;  // parameters consistent with the final strain of each increment
+  io.contact.tolerance_rel = options.tolerance_rel;
+  io.contact.max_iterations = options.max_iterations;
+  fem::IncrementalSummary summary;
+  return fem::run_incremental_forces(fem, material, forces, io, &summary);
+}
+
+MatrixX3d example_forces(const material::Example& example, Eigen::Index num_nodes) {
+  MatrixX3d f = MatrixX3d::Zero(num_nodes, 3);
+  for (const material::NodalForce& nf : example.forces) f.row(nf.node) += nf.force_n.transpose();
+  return f;
+}
+
 ExampleError example_error(const material::Example& example, const MatrixX3d& positions) {
   ExampleError e;
   std::vector<char> fixed(static_cast<std::size_t>(positions.rows()), 0);
@@ -215,9 +232,7 @@ Result<ExampleSimulator> ExampleSimulator::create(const material::Samples& sampl
     Result<fem::CorotationalFem> f = fem::CorotationalFem::create(samples.mesh, ex.fixed_nodes);
     if (!f.ok()) return f.status().with_context(fmt::format("examples[{}]", i));
     impl->fems.push_back(std::move(f).value());
-    MatrixX3d forces = MatrixX3d::Zero(samples.mesh.num_nodes(), 3);
-    for (const material::NodalForce& nf : ex.forces) forces.row(nf.node) += nf.force_n.transpose();
-    impl->forces.push_back(std::move(forces));
+    impl->forces.push_back(example_forces(ex, samples.mesh.num_nodes()));
   }
   return ExampleSimulator(std::move(impl));
 }
@@ -225,14 +240,8 @@ Result<ExampleSimulator> ExampleSimulator::create(const material::Samples& sampl
 std::size_t ExampleSimulator::num_examples() const { return impl_->fems.size(); }
 
 Result<MatrixX3d> ExampleSimulator::simulate(std::size_t i, const fem::MaterialModel& material) {
-  fem::IncrementalOptions io;
-  io.steps = impl_->options.steps;
-  io.update_within_step = true;  // parameters consistent with the final strain of each increment
-  io.contact.tolerance_rel = impl_->options.tolerance_rel;
-  io.contact.max_iterations = impl_->options.max_iterations;
-  fem::IncrementalSummary summary;
   fem::CorotationalFem& f = impl_->fems[i];
-  const Status st = fem::run_incremental_forces(&f, material, impl_->forces[i], io, &summary);
+  const Status st = simulate_forces(&f, material, impl_->forces[i], impl_->options);
   if (!st.ok()) return st.with_context(fmt::format("examples[{}]", i));
   return f.positions();
 }

@@ -13,13 +13,13 @@
 #include <random>
 #include <set>
 
+#include "clock.h"
+
 namespace hc::composite {
 namespace {
 
-using Clock = std::chrono::steady_clock;
-double seconds_since(Clock::time_point t0) {
-  return std::chrono::duration<double>(Clock::now() - t0).count();
-}
+using detail::Clock;
+using detail::seconds_since;
 
 // Lloyd iterations of the per-level K-means (converges in a handful on a few hundred nodes).
 constexpr int kKMeansIterations = 20;

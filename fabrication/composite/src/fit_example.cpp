@@ -17,8 +17,7 @@ Result<FitExample> FitExample::create(const material::Samples& samples, std::siz
   HC_ASSIGN_OR_RETURN(fem::CorotationalFem f,
                       fem::CorotationalFem::create(samples.mesh, ex.fixed_nodes));
   FitExample out(&samples, index, model, forward, std::move(f));
-  out.forces_ = MatrixX3d::Zero(samples.mesh.num_nodes(), 3);
-  for (const material::NodalForce& nf : ex.forces) out.forces_.row(nf.node) += nf.force_n.transpose();
+  out.forces_ = example_forces(ex, samples.mesh.num_nodes());
   std::vector<double> target, rest;
   for (Eigen::Index n = 0; n < samples.mesh.num_nodes(); ++n) {
     if (!ex.visible[static_cast<std::size_t>(n)] || out.fem_.is_fixed(n)) continue;
@@ -56,13 +55,7 @@ void FitExample::hold_state(const BaseMaterial& material, bool at_rest) {
 Status FitExample::simulate_full(const BaseMaterial& material) {
   const CompositeMaterial composite(std::vector<const BaseMaterial*>(
       static_cast<std::size_t>(fem_.num_elements()), &material));
-  fem::IncrementalOptions io;
-  io.steps = forward_.steps;
-  io.update_within_step = true;
-  io.contact.tolerance_rel = forward_.tolerance_rel;
-  io.contact.max_iterations = forward_.max_iterations;
-  fem::IncrementalSummary summary;
-  HC_RETURN_IF_ERROR(fem::run_incremental_forces(&fem_, composite, forces_, io, &summary));
+  HC_RETURN_IF_ERROR(simulate_forces(&fem_, composite, forces_, forward_));
   state_ = fem_.positions();
   fem_.update_rotations();
   const Eigen::Index t = fem_.num_elements();

@@ -10,6 +10,7 @@
 #include <optional>
 #include <random>
 
+#include "clock.h"
 #include "processing/fem/blas_threads.h"
 #include "processing/fem/corotational.h"
 #include "processing/fem/incremental.h"
@@ -17,7 +18,7 @@
 namespace hc::composite {
 namespace {
 
-using Clock = std::chrono::steady_clock;
+using detail::Clock;
 
 // Per example: the reduced model and the target in reduced coordinates.
 struct ReducedExample {
@@ -58,12 +59,15 @@ struct Screen::Impl {
   double setup_time_s = 0;
   const material::Samples* samples = nullptr;
 
+  // |P y - ubar|^2 = y^T G y - 2 h^T y + c with y = A^-1 b; `llt` and `y` are reused workspaces.
   double example_error(std::size_t i, const Eigen::MatrixXd& a, Eigen::LLT<Eigen::MatrixXd>* llt,
                        Eigen::VectorXd* y) const {
     const ReducedExample& r = ex[i];
     llt->compute(a);
-    *y = llt->solve(r.load);
-    return std::max(0.0, y->dot(r.gram * *y) - 2.0 * r.cross.dot(*y) + r.constant);
+    *y = r.load;
+    llt->solveInPlace(*y);
+    const double gyy = (r.gram_factor_t * *y).squaredNorm();
+    return std::max(0.0, gyy - 2.0 * r.cross.dot(*y) + r.constant);
   }
 };
 
@@ -116,19 +120,12 @@ Result<std::vector<std::vector<Matrix6d>>> uniform_secants(
   const material::Example& example = samples.examples[i];
   HC_ASSIGN_OR_RETURN(fem::CorotationalFem f,
                       fem::CorotationalFem::create(samples.mesh, example.fixed_nodes));
-  MatrixX3d forces = MatrixX3d::Zero(samples.mesh.num_nodes(), 3);
-  for (const material::NodalForce& nf : example.forces) forces.row(nf.node) += nf.force_n.transpose();
+  const MatrixX3d forces = example_forces(example, samples.mesh.num_nodes());
   const auto t = static_cast<std::size_t>(samples.mesh.num_tets());
   std::vector<std::vector<Matrix6d>> out;
   for (const BaseMaterial& m : library) {
     const CompositeMaterial uniform(std::vector<const BaseMaterial*>(t, &m));
-    fem::IncrementalOptions io;
-    io.steps = forward.steps;
-    io.update_within_step = true;
-    io.contact.tolerance_rel = forward.tolerance_rel;
-    io.contact.max_iterations = forward.max_iterations;
-    fem::IncrementalSummary summary;
-    HC_RETURN_IF_ERROR(fem::run_incremental_forces(&f, uniform, forces, io, &summary));
+    HC_RETURN_IF_ERROR(simulate_forces(&f, uniform, forces, forward));
     f.update_rotations();
     std::vector<Matrix6d> e(t);
     for (std::size_t k = 0; k < t; ++k) e[k] = m.elasticity(f.strain(static_cast<Eigen::Index>(k)));
@@ -147,8 +144,7 @@ Status reduce_example(const material::Samples& samples, std::size_t i,
   linear.corotational = false;
   HC_ASSIGN_OR_RETURN(fem::CorotationalFem f,
                       fem::CorotationalFem::create(samples.mesh, example.fixed_nodes, linear));
-  MatrixX3d forces = MatrixX3d::Zero(samples.mesh.num_nodes(), 3);
-  for (const material::NodalForce& nf : example.forces) forces.row(nf.node) += nf.force_n.transpose();
+  const MatrixX3d forces = example_forces(example, samples.mesh.num_nodes());
   const Eigen::Index ndof = f.num_free_dofs();
   const auto t = static_cast<std::size_t>(samples.mesh.num_tets());
   // Snapshots: linear solves of the frozen-secant model.
@@ -248,7 +244,7 @@ Result<Screen> Screen::create(const material::Samples& samples, const CellGrid& 
     HC_RETURN_IF_ERROR(st[i].with_context(fmt::format("screen: examples[{}]", i)));
   Screen screen(std::move(impl));
   HC_RETURN_IF_ERROR(screen.set_target(samples));
-  screen.impl_->setup_time_s = std::chrono::duration<double>(Clock::now() - t0).count();
+  screen.impl_->setup_time_s = detail::seconds_since(t0);
   return screen;
 }
 

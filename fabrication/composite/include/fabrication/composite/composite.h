@@ -13,6 +13,7 @@
 #include "common/status.h"
 #include "common/tet_mesh.h"
 #include "fabrication/composite/base_material.h"
+#include "processing/fem/corotational.h"
 #include "processing/fem/material_model.h"
 #include "processing/material/samples.h"
 
@@ -79,10 +80,20 @@ Result<CompositeMaterial> make_composite(const std::vector<BaseMaterial>& librar
 // Options of the quasi-static simulation of Sec. 5.3.2 under an example's nodal forces.
 struct ForwardOptions {
   int steps = 4;  // load increments; parameters follow the strain within each (self-consistent)
-  double tolerance_rel = 1e-6;  // processing/fem's position tolerance (relative to the size)
+  // processing/fem's position tolerance relative to the specimen's size (1e-5 of a 5 cm block is
+  // 0.5 nm; 1e-6 took ~2x the iterations for no visible change in errors of micrometres).
+  double tolerance_rel = 1e-5;
   int max_iterations = 100;     // equilibrium iterations per increment
   Status validate() const;
 };
+
+// The full model for one example: `fem` (built with the example's fixed nodes) loaded by the
+// nodal forces (#N by 3) in options.steps increments, parameters self-consistent with the strain in
+// each (processing/fem's run_incremental_forces); fem holds the deformed positions afterwards.
+Status simulate_forces(fem::CorotationalFem* fem, const fem::MaterialModel& material,
+                       const MatrixX3d& forces, const ForwardOptions& options);
+// An example's applied forces as #N by 3.
+MatrixX3d example_forces(const material::Example& example, Eigen::Index num_nodes);
 
 // The error of simulated positions against an example's measurements: over its visible nodes that
 // are not fixed, the sum of squared node distances (m^2), the count and the largest distance.

@@ -39,7 +39,7 @@ enum class SearchMode { kBranchAndBound, kExact };
 struct SearchOptions {
   SearchMode mode = SearchMode::kBranchAndBound;
   int clusters = 20;           // K of the thesis's K-means per level (Sec. 5.5.4)
-  int simulate_best = 4;       // B&B: the best screened designs simulated in full
+  int simulate_best = 3;       // B&B: the best screened designs simulated in full
   double margin = 2.0;         // exact: kappa
   int min_simulated = 8;       // exact: full simulations before the screen bound is trusted
   int max_simulated = 400;     // exact: budget of full simulations
