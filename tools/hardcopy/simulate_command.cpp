@@ -1,4 +1,5 @@
-// hardcopy simulate SCENE.json: specimen + material + probe + load -> incremental simulation.
+// hardcopy simulate SCENE.json: specimen + material + probe + load -> incremental simulation (the
+// material may be a composite design file of `hardcopy design composite`).
 // hardcopy validate fem: the FEM verification table (patch, cantilever, flat punch, sphere).
 #include <fmt/format.h>
 
@@ -12,8 +13,10 @@
 #include <vector>
 
 #include "command.h"
+#include "common/file_io.h"
 #include "common/json.h"
 #include "common/tet_mesh_io.h"
+#include "fabrication/composite/design_file.h"
 #include "processing/fem/verification.h"
 #include "processing/scene/scene.h"
 
@@ -98,7 +101,19 @@ int run_simulate(const GlobalOptions& global, const SimulateArgs& args) {
     return ctx.fail("simulate", invalid_argument(fmt::format(
                                     "{}: load.force_n {:g} N is not a probe load (at most {:g} N)",
                                     args.scene, sc->load.value, kMaxProbeForceN)));
-  Result<scene::SimulationResult> r = scene::simulate(*sc, ctx.progress());
+  // A composite design (fabrication/composite) is a material file too.
+  scene::MaterialLoader loader;
+  if (sc->material.kind == scene::MaterialKind::kFile) {
+    Result<std::string> text = read_file(sc->material.file);
+    if (text.ok() && composite::is_design_document(*text)) {
+      loader = [](const std::filesystem::path& file,
+                  const TetMesh& mesh) -> Result<std::unique_ptr<fem::MaterialModel>> {
+        HC_ASSIGN_OR_RETURN(const composite::DesignFile d, composite::read_design(file));
+        return composite::design_material(d, mesh);
+      };
+    }
+  }
+  Result<scene::SimulationResult> r = scene::simulate(*sc, ctx.progress(), loader);
   if (!r.ok()) return ctx.fail("simulate", r.status().with_context(args.scene));
   if (sc->probe.shape != scene::ProbeSpec::Shape::kMesh) {
     const Eigen::Index t = tet_containing(r->mesh, sc->probe.position_m);

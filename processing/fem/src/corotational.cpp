@@ -77,6 +77,7 @@ struct CorotationalFem::Impl {
   std::vector<Matrix43d> grads;
   std::vector<double> volumes;
   std::vector<LambdaAlpha> params;
+  std::vector<Matrix6d> elasticity;  // per element when anisotropic, else empty
   MatrixX3d x;
   std::vector<Eigen::Matrix3d> rotations;
   std::vector<Eigen::Quaterniond> quats;
@@ -306,7 +307,7 @@ Matrix12d CorotationalFem::stiffness_h(Eigen::Index e) const {
 }
 Matrix12d CorotationalFem::element_stiffness(Eigen::Index e) const {
   const Matrix6x12d b = b_matrix(e);
-  return volume(e) * b.transpose() * elasticity_matrix(impl_->params[static_cast<size_t>(e)]) * b;
+  return volume(e) * b.transpose() * element_elasticity(e) * b;
 }
 
 Vector12d CorotationalFem::rest_positions(Eigen::Index e) const {
@@ -337,6 +338,33 @@ void CorotationalFem::set_uniform_params(const LambdaAlpha& p) {
   std::fill(impl_->params.begin(), impl_->params.end(), p);
 }
 const std::vector<LambdaAlpha>& CorotationalFem::params() const { return impl_->params; }
+
+Status CorotationalFem::set_elasticity(std::vector<Matrix6d> elasticity) {
+  if (static_cast<Eigen::Index>(elasticity.size()) != num_elements()) {
+    return invalid_argument("FEM: " + std::to_string(elasticity.size()) +
+                            " elasticity matrices for " + std::to_string(num_elements()) +
+                            " elements");
+  }
+  for (size_t e = 0; e < elasticity.size(); ++e) {
+    const Matrix6d& m = elasticity[e];
+    if (!m.allFinite()) {
+      return invalid_argument("FEM: element " + std::to_string(e) +
+                              " has a non-finite elasticity matrix");
+    }
+    if ((m - m.transpose()).cwiseAbs().maxCoeff() > 1e-9 * m.cwiseAbs().maxCoeff()) {
+      return invalid_argument("FEM: element " + std::to_string(e) +
+                              " has a non-symmetric elasticity matrix");
+    }
+  }
+  impl_->elasticity = std::move(elasticity);
+  return {};
+}
+void CorotationalFem::clear_elasticity() { impl_->elasticity.clear(); }
+bool CorotationalFem::has_elasticity() const { return !impl_->elasticity.empty(); }
+Matrix6d CorotationalFem::element_elasticity(Eigen::Index e) const {
+  if (!impl_->elasticity.empty()) return impl_->elasticity[static_cast<size_t>(e)];
+  return elasticity_matrix(impl_->params[static_cast<size_t>(e)]);
+}
 
 Status CorotationalFem::set_positions(const MatrixX3d& x) {
   if (x.rows() != num_nodes()) {
@@ -405,6 +433,10 @@ void CorotationalFem::assemble() {
   double* values = s.k.valuePtr();
   std::fill(values, values + s.k.nonZeros(), 0.0);
   s.rhs.setZero();
+  if (!s.elasticity.empty()) {
+    assemble_anisotropic();
+    return;
+  }
   const Eigen::Index t = num_elements();
   const auto& tets = s.mesh.tets;
   for (Eigen::Index e = 0; e < t; ++e) {
@@ -447,6 +479,50 @@ void CorotationalFem::assemble() {
           for (int r = 0; r < 3; ++r) {
             rhs_a[r] -= va * h(a, r) * hb_x + vmu * h(b, r) * ha_x + mgg * xb(r);
           }
+        }
+      }
+    }
+  }
+}
+
+void CorotationalFem::assemble_anisotropic() {
+  // The general form of the isotropic loop above: K^w_e = R^ K_e R^T with R^ = diag(R, R, R, R),
+  // i.e. V (B R^T)^T E (B R^T), and the rest-shape term R^ K_e X_e = V R B_a^T E (1,1,1,0,0,0)^T
+  // per node a (B X_e is the identity's strain).
+  Impl& s = *impl_;
+  double* values = s.k.valuePtr();
+  const auto& tets = s.mesh.tets;
+  Vector6d identity_strain;
+  identity_strain << 1, 1, 1, 0, 0, 0;
+  for (Eigen::Index e = 0; e < num_elements(); ++e) {
+    const auto ue = static_cast<size_t>(e);
+    const Eigen::Matrix3d& r = s.rotations[ue];
+    const Matrix6x12d b = b_matrix(e);
+    Matrix6x12d br;
+    for (int a = 0; a < 4; ++a) br.middleCols<3>(3 * a) = b.middleCols<3>(3 * a) * r.transpose();
+    const Matrix6d ve = s.volumes[ue] * s.elasticity[ue];
+    const Matrix12d kw = br.transpose() * ve * br;
+    const Vector12d rest = br.transpose() * (ve * identity_strain);
+    const int* sc = &s.scatter[ue * 48];
+    int fr[4];
+    for (int a = 0; a < 4; ++a) fr[a] = s.free_index[static_cast<size_t>(tets(e, a))];
+    for (int a = 0; a < 4; ++a) {
+      if (fr[a] < 0) continue;
+      double* rhs_a = s.rhs.data() + 3 * fr[a];
+      for (int c = 0; c < 3; ++c) rhs_a[c] += rest(3 * a + c);
+      for (int b2 = 0; b2 < 4; ++b2) {
+        if (fr[b2] >= 0) {
+          if (fr[a] > fr[b2]) continue;
+          const int* col = sc + (a * 4 + b2) * 3;
+          for (int c = 0; c < 3; ++c) {
+            double* dst = values + col[c];
+            const int rmax = (a == b2) ? c : 2;  // diagonal block: upper triangle only
+            for (int row = 0; row <= rmax; ++row) dst[row] += kw(3 * a + row, 3 * b2 + c);
+          }
+        } else {
+          const Eigen::Vector3d xb = s.x.row(tets(e, b2)).transpose();
+          for (int row = 0; row < 3; ++row)
+            rhs_a[row] -= kw.block<1, 3>(3 * a + row, 3 * b2).dot(xb.transpose());
         }
       }
     }
@@ -543,7 +619,7 @@ MatrixX3d CorotationalFem::elastic_forces() const {
     }
     // f_e = -R V B^T E B u (B u is rotation-frame strain; exact also for translated frames as B
     // annihilates translations).
-    const Vector6d sigma = elasticity_matrix(s.params[ue]) * (b * u);
+    const Vector6d sigma = element_elasticity(e) * (b * u);
     const Vector12d fl = -s.volumes[ue] * b.transpose() * sigma;
     for (int a = 0; a < 4; ++a) f.row(tets(e, a)) += (r * fl.segment<3>(3 * a)).transpose();
   }

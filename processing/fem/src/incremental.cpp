@@ -28,6 +28,16 @@ void update_params_from_strain(CorotationalFem* fem, const MaterialModel& materi
   // Sizes match by construction; non-finite material output is caught here.
   const Status st = fem->set_params(p);
   if (!st.ok()) fem->set_uniform_params(LambdaAlpha{});  // makes the next factorize() fail loudly
+  if (!material.anisotropic()) {
+    fem->clear_elasticity();
+    return;
+  }
+  std::vector<Matrix6d> e(static_cast<size_t>(t));
+  for (Eigen::Index i = 0; i < t; ++i) e[static_cast<size_t>(i)] = material.elasticity(i, fem->strain(i));
+  if (!fem->set_elasticity(std::move(e)).ok()) {
+    fem->clear_elasticity();
+    fem->set_uniform_params(LambdaAlpha{});
+  }
 }
 
 Status incremental_step(CorotationalFem* fem, const MaterialModel& material,

@@ -26,6 +26,10 @@ Status NeoHookeanMaterial::validate() const {
     return invalid_argument(fmt::format("Poisson's ratio {} must be in (-1, 0.5)", poisson));
   if (!(std::isfinite(stiffening) && stiffening >= 0))
     return invalid_argument(fmt::format("stiffening {} must be >= 0", stiffening));
+  if (!(std::isfinite(fibre_pa) && fibre_pa >= 0))
+    return invalid_argument(fmt::format("fibre modulus {} Pa must be >= 0", fibre_pa));
+  if (!fibre_axis.allFinite() || std::abs(fibre_axis.norm() - 1.0) > 1e-9)
+    return invalid_argument("fibre axis must be a unit vector");
   return {};
 }
 
@@ -61,6 +65,30 @@ Result<std::vector<NeoHookeanMaterial>> layered_materials(const TetMesh& mesh,
   return out;
 }
 
+namespace {
+
+// ψ_f = E_f/8 (I4 − 1)², I4 = |F a|²:  P_f = E_f/2 (I4 − 1) F a aᵀ and, with g = vec(F a aᵀ),
+// ∂P_f/∂F = E_f g gᵀ + E_f/2 (I4 − 1) (a aᵀ ⊗ I) in the 3·col + row ordering.
+void add_fibre_term(const NeoHookeanMaterial& m, const Eigen::Matrix3d& F, double* psi,
+                    Eigen::Matrix3d* P, Eigen::Matrix<double, 9, 9>* dP_dF) {
+  const Eigen::Vector3d& a = m.fibre_axis;
+  const Eigen::Vector3d fa = F * a;
+  const double i4m1 = fa.squaredNorm() - 1.0;
+  *psi += 0.125 * m.fibre_pa * i4m1 * i4m1;
+  const Eigen::Matrix3d faat = fa * a.transpose();
+  if (P != nullptr) *P += 0.5 * m.fibre_pa * i4m1 * faat;
+  if (dP_dF != nullptr) {
+    const Eigen::Map<const Eigen::Matrix<double, 9, 1>> g(faat.data());
+    *dP_dF += m.fibre_pa * g * g.transpose();
+    const Eigen::Matrix3d aat = a * a.transpose();
+    for (int j = 0; j < 3; ++j)
+      for (int l = 0; l < 3; ++l)
+        for (int i = 0; i < 3; ++i) (*dP_dF)(3 * j + i, 3 * l + i) += 0.5 * m.fibre_pa * i4m1 * aat(j, l);
+  }
+}
+
+}  // namespace
+
 double neo_hookean_density(const NeoHookeanMaterial& m, const Eigen::Matrix3d& F,
                            Eigen::Matrix3d* P, Eigen::Matrix<double, 9, 9>* dP_dF) {
   const double J = F.determinant();
@@ -71,9 +99,12 @@ double neo_hookean_density(const NeoHookeanMaterial& m, const Eigen::Matrix3d& F
   const double lnJ = std::log(J);
   const double I1 = F.squaredNorm();
   const double q = I1 - 3.0 - 2.0 * lnJ;
-  const double psi =
+  double psi =
       0.5 * mu * (I1 - 3.0) - mu * lnJ + 0.5 * lambda * lnJ * lnJ + 0.25 * beta * mu * q * q;
-  if (P == nullptr && dP_dF == nullptr) return psi;
+  if (P == nullptr && dP_dF == nullptr) {
+    if (m.fibre_pa > 0) add_fibre_term(m, F, &psi, nullptr, nullptr);
+    return psi;
+  }
   const Eigen::Matrix3d Finv = F.inverse();
   const Eigen::Matrix3d FinvT = Finv.transpose();
   const Eigen::Matrix3d A = F - FinvT;  // ∂(I1 − 2 ln J)/∂F / 2
@@ -93,6 +124,7 @@ double neo_hookean_density(const NeoHookeanMaterial& m, const Eigen::Matrix3d& F
         dP_dF->col(3 * c + r) = Eigen::Map<const Eigen::Matrix<double, 9, 1>>(dP.data());
       }
   }
+  if (m.fibre_pa > 0) add_fibre_term(m, F, &psi, P, dP_dF);
   return psi;
 }
 

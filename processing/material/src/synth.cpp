@@ -28,6 +28,8 @@ Status SynthOptions::validate() const {
     return invalid_argument("force: must be a finite number > 0");
   if (!(min_force_fraction > 0 && min_force_fraction <= 1))
     return invalid_argument("min_force_fraction: must be in (0, 1]");
+  for (double l : force_levels)
+    if (!(l > 0 && l <= 1)) return invalid_argument("force_levels: each must be in (0, 1]");
   if (!(margin_fraction >= 0 && margin_fraction < 0.5))
     return invalid_argument("margin_fraction: must be in [0, 0.5)");
   if (probe.shape != "sphere" && probe.shape != "flat" && probe.shape != "mesh")
@@ -105,8 +107,13 @@ Result<Samples> synthesize_samples(const TetMesh& mesh, const ReferenceSimulator
     // search the depth for a force by secant steps do badly when the first steps find no contact.
     const double lift = probe.radius_m;
     probe.position_m = Eigen::Vector3d(x, y, hi.z()) - lift * dir;
-    const double force = options.max_force_n * (options.min_force_fraction +
-                                                (1 - options.min_force_fraction) * unit(rng));
+    const double random_level =
+        options.min_force_fraction + (1 - options.min_force_fraction) * unit(rng);
+    const double force =
+        options.max_force_n *
+        (options.force_levels.empty()
+             ? random_level
+             : options.force_levels[static_cast<std::size_t>(k) % options.force_levels.size()]);
     Result<ReferenceIndentation> sim = simulate(probe, force);
     if (!sim.ok()) return sim.status().with_context(fmt::format("synth example {}", k));
     if (sim->positions_m.rows() != mesh.num_nodes() ||

@@ -427,7 +427,8 @@ Result<SimulationResult> run_neo_hookean(const Scene& scene, const TetMesh& mesh
 
 }  // namespace
 
-Result<SimulationResult> simulate(const Scene& scene, ProgressReporter* progress) {
+Result<SimulationResult> simulate(const Scene& scene, ProgressReporter* progress,
+                                  const MaterialLoader& loader) {
   const auto t0 = std::chrono::steady_clock::now();
   ProgressTask task(progress, "simulate", 3);
   HC_ASSIGN_OR_RETURN(TetMesh mesh, build_specimen(scene.specimen));
@@ -451,6 +452,9 @@ Result<SimulationResult> simulate(const Scene& scene, ProgressReporter* progress
       HC_ASSIGN_OR_RETURN(std::vector<fem::LambdaAlpha> p,
                           layered_linear(scene.material.layers, mesh));
       material = std::make_unique<fem::ConstantMaterial>(std::move(p));
+    } else if (loader) {
+      HC_ASSIGN_OR_RETURN(material, loader(scene.material.file, mesh));
+      name = "corotational_data_driven";
     } else {
       HC_ASSIGN_OR_RETURN(material, material::load_material(scene.material.file));
       name = "corotational_data_driven";

@@ -121,6 +121,17 @@ class CorotationalFem {
   void set_uniform_params(const LambdaAlpha& p);
   const std::vector<LambdaAlpha>& params() const;
 
+  // Anisotropic elements (the transversely isotropic base materials of thesis Eq. 5.6): one
+  // symmetric 6x6 elasticity matrix E_e per element (Eq. 4.1 order, engineering shears) that
+  // replaces (lambda, alpha) in assembly, elastic forces and element_stiffness(): K_e = V_e B_e^T
+  // E_e B_e. Size num_elements(); invalid_argument on a size mismatch or a non-finite or
+  // non-symmetric matrix (naming the element). clear_elasticity() goes back to (lambda, alpha).
+  Status set_elasticity(std::vector<Matrix6d> elasticity);
+  void clear_elasticity();
+  bool has_elasticity() const;
+  // E_e in use: the per-element matrix when set, else elasticity_matrix(params()[e]).
+  Matrix6d element_elasticity(Eigen::Index e) const;
+
   // Current positions (#N by 3, metres). Fixed nodes' rows are their prescribed positions (e.g. a
   // linear displacement boundary condition); free rows are the initial guess / last solution.
   Status set_positions(const MatrixX3d& x);
@@ -182,6 +193,7 @@ class CorotationalFem {
  private:
   struct Impl;
   explicit CorotationalFem(std::unique_ptr<Impl> impl);
+  void assemble_anisotropic();
   std::unique_ptr<Impl> impl_;
 };
 

@@ -41,7 +41,8 @@ struct IncrementalSummary {
   bool converged = false;
 };
 
-// Sets every element's parameters from its current strain (fem.strains() after update_rotations()).
+// Sets every element's parameters from its current strain (fem.strains() after update_rotations()),
+// and for an anisotropic() model its elasticity matrix (CorotationalFem::set_elasticity).
 void update_params_from_strain(CorotationalFem* fem, const MaterialModel& material);
 
 // One incremental step exactly as benchmarked: update rotations, update parameters from the current

@@ -41,6 +41,15 @@ class MaterialModel {
   virtual LambdaAlpha params(Eigen::Index element, const Vector6d& strain) const = 0;
   // false when params() ignores the strain (the incremental solver may then skip the updates).
   virtual bool strain_dependent() const { return true; }
+  // true for models that are not isotropic (thesis Sec. 5.7.2): the solvers then take the full
+  // elasticity() per element (CorotationalFem::set_elasticity), and params() need only be an
+  // isotropic stand-in of similar stiffness.
+  virtual bool anisotropic() const { return false; }
+  // The 6x6 elasticity matrix E (Eq. 4.2; Eq. 4.1 order, engineering shears) of `element` at
+  // `strain`; symmetric positive definite for a physically valid material.
+  virtual Matrix6d elasticity(Eigen::Index element, const Vector6d& strain) const {
+    return elasticity_matrix(params(element, strain));
+  }
   // Number of elements this model describes, or -1 when it applies to any element index.
   virtual Eigen::Index num_elements() const { return -1; }
 };

@@ -11,6 +11,12 @@
 // strain-stiffening addition: its argument I1 − 3 − 2 ln J is ≥ 0 and quadratic in the strain, so
 // the term is quartic and the small-strain limit is linear elasticity with (E, ν) for every β.
 //
+// Optional transverse isotropy (the tube-structured printed materials of thesis Sec. 5.7.2): a
+// fibre term along the unit axis a (default z, the printer's build direction),
+//   ψ_f = E_f/8 (I4 − 1)²,   I4 = |F a|²   (the standard reinforcing model, e.g. Bonet & Burton 1998)
+// adds E_f to the small-strain axial stiffness C33 and nothing else, stiffens in axial tension and
+// softens in axial compression (like tubes that bow); E_f = 0 (default) is the isotropic model.
+//
 // Units: SI (m, N, Pa, J). Positions are #N by 3 (hc::MatrixX3d) or a stacked 3N vector
 // [x0 y0 z0 x1 ...].
 #pragma once
@@ -35,10 +41,13 @@ struct NeoHookeanMaterial {
   double youngs_pa = 1e6;
   double poisson = 0.3;
   double stiffening = 0.0;
+  double fibre_pa = 0.0;  // E_f ≥ 0: axial stiffening along fibre_axis (0: isotropic)
+  Eigen::Vector3d fibre_axis = Eigen::Vector3d::UnitZ();  // unit vector (material frame = world)
 
   double mu_pa() const;      // shear modulus μ = E / (2(1+ν))
   double lambda_pa() const;  // first Lamé parameter λ = Eν / ((1+ν)(1−2ν))
-  // Fails with kInvalidArgument naming the bad value (E ≤ 0 or not finite, ν ∉ (−1, 0.5), β < 0).
+  // Fails with kInvalidArgument naming the bad value (E ≤ 0 or not finite, ν ∉ (−1, 0.5), β < 0,
+  // E_f < 0, a fibre axis that is not a finite unit vector).
   Status validate() const;
 };
 

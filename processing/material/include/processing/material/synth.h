@@ -47,6 +47,9 @@ struct SynthOptions {
   ProbePose probe;
   double max_force_n = 1.0;  // force levels uniform in [min_force_fraction, 1] × max
   double min_force_fraction = 0.2;
+  // Instead of random levels: example k pushes with force_levels[k mod size] × max_force_n (each in
+  // (0, 1]), e.g. three levels as in thesis Table 5.8.1. Empty: random levels.
+  std::vector<double> force_levels;
   double margin_fraction = 0.15;  // keep probe centres this fraction of the size off the edges
   bool surface_only = false;      // true: only boundary nodes are visible (like markers)
   std::vector<int> fixed_nodes;   // sorted, unique

@@ -18,6 +18,8 @@
 
 #include <Eigen/Core>
 #include <filesystem>
+#include <functional>
+#include <memory>
 #include <optional>
 #include <string>
 #include <string_view>
@@ -28,6 +30,7 @@
 #include "common/tet_mesh.h"
 #include "processing/fem/contact.h"
 #include "processing/fem/incremental.h"
+#include "processing/fem/material_model.h"
 
 namespace hc::scene {
 
@@ -101,9 +104,16 @@ struct SimulationResult {
   double time_s = 0;
 };
 
-// Builds the specimen, the material and the probe and runs the incremental load. Errors: bad input
+// Builds the material of a {"file": ...} scene material for the specimen's mesh. Rooms above
+// processing pass one for their own files (e.g. a composite design, fabrication/composite).
+using MaterialLoader = std::function<Result<std::unique_ptr<fem::MaterialModel>>(
+    const std::filesystem::path& file, const TetMesh& specimen)>;
+
+// Builds the specimen, the material and the probe and runs the incremental load. A "file" material
+// is read as a processing/material file unless `loader` is given. Errors: bad input
 // (invalid_argument: inverted/degenerate elements, unreachable probe, fixed node out of range,
 // material for a different mesh) or no equilibrium (failed_precondition).
-Result<SimulationResult> simulate(const Scene& scene, ProgressReporter* progress = nullptr);
+Result<SimulationResult> simulate(const Scene& scene, ProgressReporter* progress = nullptr,
+                                  const MaterialLoader& loader = {});
 
 }  // namespace hc::scene
