@@ -54,3 +54,5 @@ pkg_check_modules(ARAVIS REQUIRED IMPORTED_TARGET aravis-0.8)
 pkg_check_modules(LIBGPIOD REQUIRED IMPORTED_TARGET libgpiod)
 pkg_check_modules(LIBCAMERA REQUIRED IMPORTED_TARGET libcamera)
 find_package(PNG REQUIRED)
+# fabrication/abstraction: SVG input (expat).
+find_package(EXPAT REQUIRED)
