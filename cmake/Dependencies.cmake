@@ -59,3 +59,5 @@ find_package(PNG REQUIRED)
 # as a library whose pkg-config flags must match its build).
 pkg_check_modules(CAIRO REQUIRED IMPORTED_TARGET cairo)
 pkg_check_modules(HTTPLIB REQUIRED IMPORTED_TARGET cpp-httplib)
+# fabrication/abstraction: SVG input (expat).
+find_package(EXPAT REQUIRED)

@@ -5,7 +5,9 @@
 #include <Eigen/Core>
 #include <Eigen/Geometry>
 #include <cmath>
+#include <cstdint>
 #include <map>
+#include <unordered_map>
 #include <utility>
 #include <vector>
 
@@ -102,6 +104,43 @@ inline TriangleMesh icosphere(const Eigen::Vector3d& centre, double radius, int 
   m.triangles.resize(static_cast<Eigen::Index>(f.size()), 3);
   for (std::size_t i = 0; i < f.size(); ++i) m.triangles.row(static_cast<Eigen::Index>(i)) = f[i];
   return m;
+}
+
+// One level of 1-to-4 midpoint subdivision; each edge's midpoint is made once and shared.
+inline TriangleMesh subdivide_midpoints(const TriangleMesh& in) {
+  TriangleMesh out;
+  const Eigen::Index nv = in.num_vertices();
+  const Eigen::Index nf = in.num_triangles();
+  out.vertices.resize(nv + 3 * nf / 2 + 1, 3);  // a closed mesh has 3F/2 edges
+  out.vertices.topRows(nv) = in.vertices;
+  Eigen::Index next = nv;
+  std::unordered_map<std::uint64_t, int> midpoint;
+  midpoint.reserve(static_cast<std::size_t>(3 * nf / 2));
+  const auto mid = [&](int a, int b) {
+    const std::uint64_t key = (static_cast<std::uint64_t>(std::min(a, b)) << 32) |
+                              static_cast<std::uint32_t>(std::max(a, b));
+    auto [it, inserted] = midpoint.try_emplace(key, static_cast<int>(next));
+    if (inserted) {
+      if (next >= out.vertices.rows()) out.vertices.conservativeResize(2 * next, 3);
+      out.vertices.row(next++) = 0.5 * (in.vertices.row(a) + in.vertices.row(b));
+    }
+    return it->second;
+  };
+  out.triangles.resize(4 * nf, 3);
+  for (Eigen::Index t = 0; t < nf; ++t) {
+    const int a = in.triangles(t, 0);
+    const int b = in.triangles(t, 1);
+    const int c = in.triangles(t, 2);
+    const int ab = mid(a, b);
+    const int bc = mid(b, c);
+    const int ca = mid(c, a);
+    out.triangles.row(4 * t + 0) << a, ab, ca;
+    out.triangles.row(4 * t + 1) << ab, b, bc;
+    out.triangles.row(4 * t + 2) << ca, bc, c;
+    out.triangles.row(4 * t + 3) << ab, bc, ca;
+  }
+  out.vertices.conservativeResize(next, 3);
+  return out;
 }
 
 }  // namespace hc::testing

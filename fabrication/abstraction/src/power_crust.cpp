@@ -1,0 +1,441 @@
+#include "fabrication/abstraction/power_crust.h"
+
+#include <fmt/format.h>
+
+#include <algorithm>
+#include <array>
+#include <chrono>
+#include <cmath>
+#include <unordered_map>
+#include <unordered_set>
+
+#include "fabrication/printability/mesh_check.h"
+#include "geometry/mesh_ops.h"
+
+namespace hc::abstraction {
+namespace {
+
+double seconds_since(std::chrono::steady_clock::time_point t0) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+}
+
+// The local corner pairs of a tet: (a, b, c, d) an even permutation of (0, 1, 2, 3).
+constexpr int kTetEdges[6][4] = {{0, 1, 2, 3}, {0, 2, 3, 1}, {0, 3, 1, 2},
+                                 {1, 2, 0, 3}, {1, 3, 2, 0}, {2, 3, 0, 1}};
+
+template <int D>
+Status check_labels(const Balls<D>& balls) {
+  std::size_t in = 0;
+  for (const auto l : balls.interior) in += l;
+  if (balls.size() < D + 1) return invalid_argument("power crust: too few balls");
+  if (in == 0 || in == balls.size()) {
+    return invalid_argument("power crust: the balls are all interior or all exterior");
+  }
+  return {};
+}
+
+// Cells sharing a power vertex exactly (the samples the crust interpolates) get double positions
+// a few ulps apart. Vertices closer than kMergeFraction of the bounding-box diagonal are merged
+// (a hash grid of that cell size, union-find over the 27 neighbour cells); triangles that lose a
+// corner go, and pairs of opposite triangles on the same three vertices (a collapsed sliver
+// pocket) cancel.
+constexpr double kMergeFraction = 1e-13;
+constexpr int kSnapAttempts = 4;
+
+TriangleMesh merge_close_vertices(const std::vector<Eigen::Vector3d>& vertices,
+                                  const std::vector<Eigen::Vector3i>& triangles) {
+  Eigen::AlignedBox3d box;
+  for (const auto& v : vertices) box.extend(v);
+  const double h = std::max(kMergeFraction * box.diagonal().norm(), 1e-300);
+  const auto cell = [&](const Eigen::Vector3d& p) -> std::array<std::int64_t, 3> {
+    return {static_cast<std::int64_t>(std::floor(p.x() / h)),
+            static_cast<std::int64_t>(std::floor(p.y() / h)),
+            static_cast<std::int64_t>(std::floor(p.z() / h))};
+  };
+  struct Hash {
+    std::size_t operator()(const std::array<std::int64_t, 3>& c) const {
+      return static_cast<std::size_t>(c[0] * 73856093LL ^ c[1] * 19349663LL ^ c[2] * 83492791LL);
+    }
+  };
+  std::unordered_map<std::array<std::int64_t, 3>, std::vector<int>, Hash> grid;
+  std::vector<int> parent(vertices.size());
+  for (std::size_t i = 0; i < vertices.size(); ++i) parent[i] = static_cast<int>(i);
+  const auto find = [&](int x) {
+    while (parent[static_cast<std::size_t>(x)] != x)
+      x = parent[static_cast<std::size_t>(x)] =
+          parent[static_cast<std::size_t>(parent[static_cast<std::size_t>(x)])];
+    return x;
+  };
+  for (std::size_t i = 0; i < vertices.size(); ++i) {
+    const auto c = cell(vertices[i]);
+    for (std::int64_t dx = -1; dx <= 1; ++dx)
+      for (std::int64_t dy = -1; dy <= 1; ++dy)
+        for (std::int64_t dz = -1; dz <= 1; ++dz) {
+          const auto it = grid.find({c[0] + dx, c[1] + dy, c[2] + dz});
+          if (it == grid.end()) continue;
+          for (const int j : it->second) {
+            if ((vertices[static_cast<std::size_t>(j)] - vertices[i]).norm() <= h) {
+              parent[static_cast<std::size_t>(find(static_cast<int>(i)))] = find(j);
+            }
+          }
+        }
+    grid[c].push_back(static_cast<int>(i));
+  }
+  std::vector<int> index(vertices.size(), -1);
+  TriangleMesh mesh;
+  std::vector<Eigen::Vector3d> kept;
+  for (std::size_t i = 0; i < vertices.size(); ++i) {
+    const auto r = static_cast<std::size_t>(find(static_cast<int>(i)));
+    if (index[r] < 0) {
+      index[r] = static_cast<int>(kept.size());
+      kept.push_back(vertices[r]);
+    }
+  }
+  std::unordered_map<std::uint64_t, std::vector<std::size_t>> by_key;
+  std::vector<Eigen::Vector3i> tris;
+  for (const auto& t : triangles) {
+    Eigen::Vector3i m;
+    for (int k = 0; k < 3; ++k) m[k] = index[static_cast<std::size_t>(find(t[k]))];
+    if (m[0] == m[1] || m[1] == m[2] || m[0] == m[2]) continue;
+    std::array<std::uint64_t, 3> s{static_cast<std::uint64_t>(m[0]),
+                                   static_cast<std::uint64_t>(m[1]),
+                                   static_cast<std::uint64_t>(m[2])};
+    std::sort(s.begin(), s.end());
+    const std::uint64_t key =
+        (s[0] * 0x9E3779B97F4A7C15ULL) ^ (s[1] * 0xC2B2AE3D27D4EB4FULL) ^ s[2];
+    bool cancelled = false;
+    auto& same = by_key[key];
+    for (auto it = same.begin(); it != same.end(); ++it) {
+      const Eigen::Vector3i& o = tris[*it];
+      const bool same_set =
+          (o.array() == m[0]).any() && (o.array() == m[1]).any() && (o.array() == m[2]).any();
+      if (!same_set || o[0] < 0) continue;
+      tris[*it] = Eigen::Vector3i(-1, -1, -1);  // opposite or repeated: both go (see above)
+      same.erase(it);
+      cancelled = true;
+      break;
+    }
+    if (cancelled) continue;
+    same.push_back(tris.size());
+    tris.push_back(m);
+  }
+  // Only the vertices a triangle still uses.
+  std::vector<int> used(kept.size(), -1);
+  std::vector<Eigen::Vector3d> out_vertices;
+  std::vector<Eigen::Vector3i> out_triangles;
+  for (const auto& t : tris) {
+    if (t[0] < 0) continue;
+    Eigen::Vector3i u;
+    for (int k = 0; k < 3; ++k) {
+      int& id = used[static_cast<std::size_t>(t[k])];
+      if (id < 0) {
+        id = static_cast<int>(out_vertices.size());
+        out_vertices.push_back(kept[static_cast<std::size_t>(t[k])]);
+      }
+      u[k] = id;
+    }
+    out_triangles.push_back(u);
+  }
+  mesh.vertices.resize(static_cast<Eigen::Index>(out_vertices.size()), 3);
+  for (std::size_t i = 0; i < out_vertices.size(); ++i)
+    mesh.vertices.row(static_cast<Eigen::Index>(i)) = out_vertices[i].transpose();
+  mesh.triangles.resize(static_cast<Eigen::Index>(out_triangles.size()), 3);
+  for (std::size_t i = 0; i < out_triangles.size(); ++i)
+    mesh.triangles.row(static_cast<Eigen::Index>(i)) = out_triangles[i].transpose();
+  return mesh;
+}
+
+}  // namespace
+
+template <int D>
+std::vector<double> power_weights(const Balls<D>& balls) {
+  std::vector<double> w(balls.size());
+  for (std::size_t i = 0; i < w.size(); ++i) {
+    // A fixed pseudo-random u in [0, 1) per ball (splitmix64 of its index).
+    std::uint64_t z = (static_cast<std::uint64_t>(i) + 1) * 0x9E3779B97F4A7C15ULL;
+    z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ULL;
+    z = (z ^ (z >> 27)) * 0x94D049BB133111EBULL;
+    const double u = static_cast<double>((z ^ (z >> 31)) >> 11) * 0x1.0p-53;
+    w[i] = balls.radii[i] * balls.radii[i] * (1.0 - kWeightPerturbation * u);
+  }
+  return w;
+}
+template std::vector<double> power_weights<2>(const Balls2&);
+template std::vector<double> power_weights<3>(const Balls3&);
+
+Result<std::vector<int>> power_face(const geometry::Triangulation3& rt, int cell, int a, int b) {
+  // Circulate around a->b: from a cell (a, b, c, d) positively oriented to its neighbour across
+  // (a, b, d), where (a, b, d, e) is again positive; the power vertices turn counter-clockwise
+  // about b - a.
+  const auto& start = rt.cells[static_cast<std::size_t>(cell)];
+  int ka = 0, kb = 0;
+  while (start[static_cast<std::size_t>(ka)] != a) ++ka;
+  while (start[static_cast<std::size_t>(kb)] != b) ++kb;
+  int c = -3, d = -3;
+  for (const auto& e : kTetEdges) {
+    if (e[0] == ka && e[1] == kb) {
+      c = start[static_cast<std::size_t>(e[2])];
+      d = start[static_cast<std::size_t>(e[3])];
+    } else if (e[0] == kb && e[1] == ka) {  // (b, a, c, d) even: (a, b, d, c) is
+      c = start[static_cast<std::size_t>(e[3])];
+      d = start[static_cast<std::size_t>(e[2])];
+    }
+  }
+  std::vector<int> ring;
+  int cur = cell;
+  do {
+    if (!rt.is_finite(cur)) return internal_error("power crust: an unbounded power face");
+    ring.push_back(cur);
+    const auto& cc = rt.cells[static_cast<std::size_t>(cur)];
+    int kc = 0;
+    while (cc[static_cast<std::size_t>(kc)] != c) ++kc;
+    const int nb = rt.neighbours[static_cast<std::size_t>(cur)][static_cast<std::size_t>(kc)];
+    int e_new = -3;
+    for (const int v : rt.cells[static_cast<std::size_t>(nb)]) {
+      if (v != a && v != b && v != d) e_new = v;
+    }
+    c = d;
+    d = e_new;
+    cur = nb;
+  } while (cur != cell && ring.size() <= rt.cells.size());
+  if (cur != cell) return internal_error("power crust: broken edge ring");
+  return ring;
+}
+
+Result<Polygon2> power_crust_2d(const Balls2& balls, CrustSummary* summary) {
+  const auto t0 = std::chrono::steady_clock::now();
+  HC_RETURN_IF_ERROR(check_labels(balls));
+  const std::vector<double> w = power_weights(balls);
+  HC_ASSIGN_OR_RETURN(geometry::Triangulation2 rt, geometry::triangulate_2d(balls.centres, w));
+  CrustSummary sum;
+  sum.balls = balls.size();
+  for (const auto v : rt.is_vertex) sum.hidden_balls += v ? 0 : 1;
+  // next[t]: the triangle whose power vertex follows t's on the crust (interior on the left).
+  std::unordered_map<int, int> next;
+  for (std::size_t t = 0; t < rt.triangles.size(); ++t) {
+    const auto& tri = rt.triangles[t];
+    if (!rt.is_finite(static_cast<int>(t))) continue;
+    for (int k = 0; k < 3; ++k) {
+      const int a = tri[static_cast<std::size_t>((k + 1) % 3)];
+      const int b = tri[static_cast<std::size_t>((k + 2) % 3)];
+      const bool ia = balls.interior[static_cast<std::size_t>(a)] != 0;
+      const bool ib = balls.interior[static_cast<std::size_t>(b)] != 0;
+      if (ia == ib || !ib) continue;  // each crust edge once: from the side where b is interior
+      const int nb = rt.neighbours[t][static_cast<std::size_t>(k)];
+      if (!rt.is_finite(nb)) {
+        return internal_error("power crust: an interior ball's power cell is unbounded");
+      }
+      // Triangle t lies left of a->b; its power vertex to the neighbour's runs to the right of
+      // a->b, with b (interior) on its left.
+      next[static_cast<int>(t)] = nb;
+      ++sum.faces;
+    }
+  }
+  Polygon2 out;
+  std::unordered_set<int> done;
+  for (const auto& [start, unused] : next) {
+    if (done.count(start)) continue;
+    Loop2 loop;
+    int t = start;
+    while (!done.count(t)) {
+      done.insert(t);
+      const Eigen::Vector2d& p = rt.centres[static_cast<std::size_t>(t)];
+      if (loop.empty() || loop.back() != p) loop.push_back(p);
+      const auto it = next.find(t);
+      if (it == next.end()) return internal_error("power crust: an open crust chain");
+      t = it->second;
+    }
+    if (t != start) return internal_error("power crust: a crust vertex with more than two edges");
+    while (loop.size() > 1 && loop.back() == loop.front()) loop.pop_back();
+    if (loop.size() >= 3 && signed_area(loop) != 0.0) out.loops.push_back(std::move(loop));
+  }
+  sum.loops = out.loops.size();
+  sum.vertices = out.num_points();
+  sum.closed = sum.manifold = true;
+  sum.time_s = seconds_since(t0);
+  if (summary) *summary = sum;
+  if (out.loops.empty()) return internal_error("power crust: empty crust");
+  return out;
+}
+
+namespace {
+
+// The sample the power vertex of `cell` is, if its four balls all pass through one (see
+// Balls::defining); -1 otherwise.
+int shared_sample(const geometry::Triangulation3& rt, const Balls3& balls, std::size_t cell,
+                  const std::vector<std::uint8_t>& no_snap) {
+  if (balls.defining.size() != balls.size()) return -1;
+  const auto& c = rt.cells[cell];
+  int best = -1;
+  double best_d = 0.0;
+  for (const int s : balls.defining[static_cast<std::size_t>(c[0])]) {
+    if (s < 0 || (!no_snap.empty() && no_snap[static_cast<std::size_t>(s)])) continue;
+    bool all = true;
+    for (std::size_t k = 1; k < 4 && all; ++k) {
+      const auto& d = balls.defining[static_cast<std::size_t>(c[k])];
+      all = std::find(d.begin(), d.end(), s) != d.end();
+    }
+    if (!all) continue;
+    const double dist =
+        (balls.samples[static_cast<std::size_t>(s)] - rt.centres[cell]).squaredNorm();
+    if (best < 0 || dist < best_d) {
+      best = s;
+      best_d = dist;
+    }
+  }
+  return best;
+}
+
+}  // namespace
+
+// Positions where the surface is not a manifold: vertices with more than one fan of triangles,
+// and the ends of edges with more than two.
+std::vector<Eigen::Vector3d> non_manifold_points(const TriangleMesh& m) {
+  std::unordered_map<std::uint64_t, int> edge_count;
+  std::vector<std::vector<int>> around(static_cast<std::size_t>(m.num_vertices()));
+  for (Eigen::Index t = 0; t < m.num_triangles(); ++t) {
+    for (int k = 0; k < 3; ++k) {
+      const auto a = static_cast<std::uint32_t>(m.triangles(t, k));
+      const auto b = static_cast<std::uint32_t>(m.triangles(t, (k + 1) % 3));
+      ++edge_count[(std::uint64_t{std::min(a, b)} << 32) | std::max(a, b)];
+      around[a].push_back(static_cast<int>(t));
+    }
+  }
+  std::vector<Eigen::Vector3d> out;
+  for (const auto& [key, n] : edge_count) {
+    if (n <= 2) continue;
+    out.push_back(m.vertices.row(static_cast<Eigen::Index>(key >> 32)).transpose());
+    out.push_back(m.vertices.row(static_cast<Eigen::Index>(key & 0xffffffffULL)).transpose());
+  }
+  for (std::size_t v = 0; v < around.size(); ++v) {
+    // Fans: the triangles around v joined through the edges at v they share.
+    const auto& ts = around[v];
+    std::vector<int> fan(ts.size());
+    for (std::size_t i = 0; i < ts.size(); ++i) fan[i] = static_cast<int>(i);
+    const auto root = [&](int x) {
+      while (fan[static_cast<std::size_t>(x)] != x) x = fan[static_cast<std::size_t>(x)];
+      return x;
+    };
+    for (std::size_t i = 0; i < ts.size(); ++i)
+      for (std::size_t j = i + 1; j < ts.size(); ++j) {
+        int shared = 0;
+        for (int a = 0; a < 3; ++a)
+          for (int b = 0; b < 3; ++b) {
+            const int va = m.triangles(ts[i], a);
+            if (va != static_cast<int>(v) && va == m.triangles(ts[j], b)) ++shared;
+          }
+        if (shared > 0)
+          fan[static_cast<std::size_t>(root(static_cast<int>(i)))] = root(static_cast<int>(j));
+      }
+    std::size_t fans = 0;
+    for (std::size_t i = 0; i < ts.size(); ++i)
+      fans += root(static_cast<int>(i)) == static_cast<int>(i);
+    if (fans > 1) out.push_back(m.vertices.row(static_cast<Eigen::Index>(v)).transpose());
+  }
+  return out;
+}
+
+Result<TriangleMesh> crust_faces_3d(const geometry::Triangulation3& rt, const Balls3& balls,
+                                    const std::vector<std::uint8_t>& no_snap) {
+  const auto& interior = balls.interior;
+  std::vector<int> vertex_of(rt.cells.size(), -1);
+  std::vector<Eigen::Vector3d> vertices;
+  std::vector<Eigen::Vector3i> triangles;
+  std::unordered_set<std::uint64_t> done;
+  for (std::size_t c0 = 0; c0 < rt.cells.size(); ++c0) {
+    if (!rt.is_finite(static_cast<int>(c0))) continue;
+    const auto& cell = rt.cells[c0];
+    for (const auto& e : kTetEdges) {
+      const int a = cell[static_cast<std::size_t>(e[0])];
+      const int b = cell[static_cast<std::size_t>(e[1])];
+      if (interior[static_cast<std::size_t>(a)] == interior[static_cast<std::size_t>(b)]) continue;
+      const auto lo = static_cast<std::uint32_t>(std::min(a, b));
+      const auto hi = static_cast<std::uint32_t>(std::max(a, b));
+      if (!done.insert((std::uint64_t{lo} << 32) | hi).second) continue;
+      HC_ASSIGN_OR_RETURN(std::vector<int> ring, power_face(rt, static_cast<int>(c0), a, b));
+      for (const int r : ring) {
+        if (vertex_of[static_cast<std::size_t>(r)] < 0) {
+          vertex_of[static_cast<std::size_t>(r)] = static_cast<int>(vertices.size());
+          const int s = shared_sample(rt, balls, static_cast<std::size_t>(r), no_snap);
+          vertices.push_back(s >= 0 ? balls.samples[static_cast<std::size_t>(s)]
+                                    : rt.centres[static_cast<std::size_t>(r)]);
+        }
+      }
+      // Outward = from the interior ball to the exterior one.
+      const bool forward = interior[static_cast<std::size_t>(a)] != 0;
+      const int p0 = vertex_of[static_cast<std::size_t>(ring[0])];
+      for (std::size_t k = 1; k + 1 < ring.size(); ++k) {
+        const int p1 = vertex_of[static_cast<std::size_t>(ring[k])];
+        const int p2 = vertex_of[static_cast<std::size_t>(ring[k + 1])];
+        triangles.push_back(forward ? Eigen::Vector3i(p0, p1, p2) : Eigen::Vector3i(p0, p2, p1));
+      }
+    }
+  }
+  return merge_close_vertices(vertices, triangles);
+}
+
+Status check_crust(double max_deviation, TriangleMesh* mesh, CrustSummary* summary) {
+  fabrication::MeshCheckOptions co;
+  HC_ASSIGN_OR_RETURN(fabrication::MeshCheckReport report, fabrication::check_mesh(*mesh, co));
+  if (report.self_intersecting_pairs > 0 && report.closed && report.manifold) {
+    geometry::ResolveOptions ro;
+    ro.max_deviation = max_deviation;
+    std::vector<geometry::SelfIntersectionStep> steps;
+    const std::int64_t before = report.self_intersecting_pairs;
+    HC_RETURN_IF_ERROR(geometry::resolve_self_intersections(ro, mesh, &steps));
+    HC_ASSIGN_OR_RETURN(report, fabrication::check_mesh(*mesh, co));
+    summary->repaired_pairs = static_cast<std::size_t>(before - report.self_intersecting_pairs);
+  }
+  summary->closed = report.closed;
+  summary->manifold = report.manifold;
+  summary->self_intersecting_pairs = report.self_intersecting_pairs;
+  summary->vertices = static_cast<std::size_t>(report.vertices);
+  summary->triangles = static_cast<std::size_t>(report.triangles);
+  if (!report.printable) {
+    std::string why;
+    for (const auto& p : report.problems) why += (why.empty() ? "" : "; ") + p;
+    return internal_error("power crust: the reconstruction is not a valid solid: " + why);
+  }
+  return {};
+}
+
+Result<TriangleMesh> power_crust_3d(const Balls3& balls, CrustSummary* summary) {
+  const auto t0 = std::chrono::steady_clock::now();
+  HC_RETURN_IF_ERROR(check_labels(balls));
+  const std::vector<double> w = power_weights(balls);
+  HC_ASSIGN_OR_RETURN(geometry::Triangulation3 rt, geometry::triangulate_3d(balls.centres, w));
+  CrustSummary sum;
+  sum.balls = balls.size();
+  for (const auto v : rt.is_vertex) sum.hidden_balls += v ? 0 : 1;
+  TriangleMesh mesh;
+  std::vector<std::uint8_t> no_snap(balls.samples.size(), 0);
+  Status status;
+  // Snapping can make the crust touch itself where two sheets pass through one sample (thin
+  // parts, a boolean's contact curve): those samples are left unsnapped and the crust rebuilt.
+  for (int attempt = 0; attempt < kSnapAttempts; ++attempt) {
+    HC_ASSIGN_OR_RETURN(mesh, crust_faces_3d(rt, balls, no_snap));
+    sum.faces = static_cast<std::size_t>(mesh.num_triangles());
+    Eigen::AlignedBox3d box;
+    for (Eigen::Index i = 0; i < mesh.num_vertices(); ++i)
+      box.extend(mesh.vertices.row(i).transpose());
+    const std::vector<Eigen::Vector3d> bad = non_manifold_points(mesh);
+    std::size_t added = 0;
+    for (const auto& p : bad) {
+      for (std::size_t s = 0; s < balls.samples.size(); ++s) {
+        if (balls.samples[s] == p && !no_snap[s]) {
+          no_snap[s] = 1;
+          ++added;
+        }
+      }
+    }
+    if (added > 0 && attempt + 1 < kSnapAttempts) continue;
+    status = check_crust(1e-6 * box.diagonal().norm(), &mesh, &sum);
+    break;
+  }
+  HC_RETURN_IF_ERROR(status);
+  sum.time_s = seconds_since(t0);
+  if (summary) *summary = sum;
+  return mesh;
+}
+
+}  // namespace hc::abstraction
