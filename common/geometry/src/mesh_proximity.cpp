@@ -6,6 +6,7 @@
 #include <CGAL/AABB_tree.h>
 #include <CGAL/AABB_triangle_primitive.h>
 #include <CGAL/Exact_predicates_inexact_constructions_kernel.h>
+#include <CGAL/intersections.h>
 #include <fmt/format.h>
 
 #include <algorithm>
@@ -108,6 +109,22 @@ double closest_on_segments(const Eigen::Vector3d& p1, const Eigen::Vector3d& q1,
 
 Eigen::Vector3d corner(const Triangle& t, int k) { return to_eigen(t.vertex(k)); }
 
+// A point where two crossing triangles meet (the middle of their intersection), or the first
+// triangle's centroid when CGAL's construction returns nothing usable.
+Eigen::Vector3d crossing_point(const Triangle& a, const Triangle& b) {
+  const auto x = CGAL::intersection(a, b);
+  if (x) {
+    if (const Point* p = boost::get<Point>(&*x)) return to_eigen(*p);
+    if (const auto* s = boost::get<Kernel::Segment_3>(&*x))
+      return 0.5 * (to_eigen(s->source()) + to_eigen(s->target()));
+    if (const Triangle* t = boost::get<Triangle>(&*x))
+      return (corner(*t, 0) + corner(*t, 1) + corner(*t, 2)) / 3.0;
+    if (const auto* v = boost::get<std::vector<Point>>(&*x); v && !v->empty())
+      return to_eigen(v->front());
+  }
+  return (corner(a, 0) + corner(a, 1) + corner(a, 2)) / 3.0;
+}
+
 }  // namespace
 
 double triangle_closest_points(const Eigen::Vector3d& a0, const Eigen::Vector3d& a1,
@@ -174,7 +191,7 @@ Result<ClosestApproach> MeshProximity::closest_approach(const TriangleMesh& a,
         double dist;
         if (!ta.is_degenerate() && !tb.is_degenerate() && CGAL::do_intersect(ta, tb)) {
           dist = 0.0;
-          pa = pb = (corner(ta, 0) + corner(ta, 1) + corner(ta, 2)) / 3.0;
+          pa = pb = crossing_point(ta, tb);
         } else {
           dist = triangle_closest_points(corner(ta, 0), corner(ta, 1), corner(ta, 2),
                                          corner(tb, 0), corner(tb, 1), corner(tb, 2), &pa, &pb);
@@ -211,7 +228,7 @@ Result<std::vector<CrossingPair>> MeshProximity::crossings(const TriangleMesh& a
         if (id->is_degenerate() || !CGAL::do_intersect(ta, *id)) continue;
         out.push_back({static_cast<Eigen::Index>(i),
                        static_cast<Eigen::Index>(id - impl_->triangles.cbegin()),
-                       (corner(ta, 0) + corner(ta, 1) + corner(ta, 2)) / 3.0});
+                       crossing_point(ta, *id)});
         if (max_pairs > 0 && out.size() >= max_pairs) return out;
       }
     }

@@ -119,6 +119,7 @@ BallSocketDesign design_ball_socket(double r_max, const BallRange& range,
                                     const JointDesignOptions& options) {
   BallSocketDesign out;
   const double d = options.clearance_m;
+  out.clearance = d;
   const double r_lo = min_socket_radius(d);
   if (!(r_max > r_lo)) return out;
   // Unit box -> (r, h): r in (r_lo, r_max), h in (s0(r), r - d).
@@ -161,6 +162,7 @@ HingeDesign design_hinge(double r_max, const HingeRange& range,
                          const JointDesignOptions& options) {
   HingeDesign out;
   const double d = options.clearance_m;
+  out.clearance = d;
   // r > d, R > r + d, b > 2d and (b/2)^2 + R^2 < r_max^2 need r_max > sqrt(d^2 + (2d)^2) at least.
   if (!(r_max > std::sqrt(5.0) * d)) return out;
   const auto map = [&](const std::array<double, 3>& x, double* r, double* R, double* b) {

@@ -77,49 +77,74 @@ TriangleMesh sphere_mesh(double radius, int segments, Facet facet) {
   return b.mesh();
 }
 
-TriangleMesh cone_sector_mesh(const std::function<double(double)>& psi, double radius,
-                              int segments, Facet facet) {
+TriangleMesh cone_sector_mesh(const std::function<double(double)>& psi,
+                              const std::function<double(const Eigen::Vector3d&)>& reach,
+                              int segments, Facet facet, double inner, double near,
+                              double theta_offset) {
   Builder b;
   // Direction at polar angle beta from +y, about y at theta (from +z towards +x).
   const auto dir = [](double theta, double beta) {
     return Eigen::Vector3d(std::sin(beta) * std::sin(theta), std::cos(beta),
                            std::sin(beta) * std::cos(theta));
   };
+  const auto theta_of = [&](int j) { return 2 * kPi * j / segments + theta_offset; };
   std::vector<double> angle(static_cast<std::size_t>(segments));
   double widest = 0.0;
   for (int j = 0; j < segments; ++j) {
-    double a = psi(2 * kPi * j / segments);
+    double a = psi(theta_of(j));
     // The polygonal cone through generatrices at psi lies inside the true cone for psi < 90 deg;
     // widening tan(psi) by 1 / cos(pi / N) puts it outside.
     if (facet == Facet::kCircumscribed && a < kPi / 2)
       a = std::atan(std::tan(a) / std::cos(kPi / segments));
-    angle[static_cast<std::size_t>(j)] = std::clamp(a, 1e-3, kPi - 1e-3);
+    angle[static_cast<std::size_t>(j)] = std::clamp(a, inner + 1e-3, kPi - 1e-3);
     widest = std::max(widest, angle[static_cast<std::size_t>(j)]);
   }
-  const int rings = std::max(2, static_cast<int>(std::ceil(widest / (2 * kPi / segments))));
-  const int apex = b.add({0, 0, 0});
-  const int pole = b.add(radius * Eigen::Vector3d::UnitY());
-  std::vector<std::vector<int>> ring(static_cast<std::size_t>(rings));
-  for (int k = 1; k <= rings; ++k)
-    for (int j = 0; j < segments; ++j)
-      ring[static_cast<std::size_t>(k - 1)].push_back(
-          b.add(radius * dir(2 * kPi * j / segments, angle[static_cast<std::size_t>(j)] * k / rings)));
+  const int rings =
+      std::max(2, static_cast<int>(std::ceil((widest - inner) / (2 * kPi / segments))));
+  // Rings from the pole (or a shell's inner cone) out to psi, on the cap at reach(direction).
+  const bool shell = inner > 0;
+  std::vector<std::vector<int>> far, close;
+  for (int k = shell ? 0 : 1; k <= rings; ++k) {
+    far.emplace_back();
+    close.emplace_back();
+    for (int j = 0; j < segments; ++j) {
+      const double a = angle[static_cast<std::size_t>(j)];
+      const Eigen::Vector3d d = dir(theta_of(j), inner + (a - inner) * k / rings);
+      far.back().push_back(b.add(reach(d) * d));
+      if (shell) close.back().push_back(b.add(near * d));
+    }
+  }
   for (int j = 0; j < segments; ++j) {
     const auto j0 = static_cast<std::size_t>(j), j1 = static_cast<std::size_t>((j + 1) % segments);
-    b.tri(pole, ring[0][j0], ring[0][j1]);
-    for (std::size_t k = 0; k + 1 < ring.size(); ++k)
-      b.quad(ring[k][j0], ring[k + 1][j0], ring[k + 1][j1], ring[k][j1]);
-    b.tri(apex, ring.back()[j1], ring.back()[j0]);
+    for (std::size_t k = 0; k + 1 < far.size(); ++k)
+      b.quad(far[k][j0], far[k + 1][j0], far[k + 1][j1], far[k][j1]);
+    if (shell) {
+      // A shell is closed near the apex by the cap at distance `near`, and has two cone sides.
+      for (std::size_t k = 0; k + 1 < close.size(); ++k)
+        b.quad(close[k][j0], close[k][j1], close[k + 1][j1], close[k + 1][j0]);
+      b.quad(close.front()[j0], far.front()[j0], far.front()[j1], close.front()[j1]);
+      b.quad(close.back()[j0], close.back()[j1], far.back()[j1], far.back()[j0]);
+    }
+  }
+  if (!shell) {
+    const int apex = b.add({0, 0, 0});
+    const int pole = b.add(reach(Eigen::Vector3d::UnitY()) * Eigen::Vector3d::UnitY());
+    for (int j = 0; j < segments; ++j) {
+      const auto j0 = static_cast<std::size_t>(j), j1 = static_cast<std::size_t>((j + 1) % segments);
+      b.tri(pole, far.front()[j0], far.front()[j1]);
+      b.tri(apex, far.back()[j1], far.back()[j0]);
+    }
   }
   return b.mesh();
 }
 
-TriangleMesh cylinder_mesh(double radius, double x0, double x1, int segments, Facet facet) {
+TriangleMesh cylinder_mesh(double radius, double x0, double x1, int segments, Facet facet,
+                           double phase) {
   const double rho = facet == Facet::kInscribed ? radius : circumscribed(radius, segments);
   Builder b;
   std::vector<int> lo, hi;
   for (int j = 0; j < segments; ++j) {
-    const double a = 2 * kPi * j / segments;
+    const double a = 2 * kPi * (j + phase) / segments;
     lo.push_back(b.add({x0, rho * std::cos(a), rho * std::sin(a)}));
     hi.push_back(b.add({x1, rho * std::cos(a), rho * std::sin(a)}));
   }
@@ -133,45 +158,59 @@ TriangleMesh cylinder_mesh(double radius, double x0, double x1, int segments, Fa
   return b.mesh();
 }
 
-TriangleMesh sector_prism_mesh(double r0, double r1, double phi0, double phi1, double x0,
-                               double x1, int segments_per_turn, Facet inner_facet) {
-  const int n = std::max(1, static_cast<int>(std::ceil((phi1 - phi0) / (2 * kPi) * segments_per_turn)));
+TriangleMesh sector_prism_mesh(double r0, const std::function<double(double, double)>& r1,
+                               double phi0, double phi1, double x0, double x1, int stations,
+                               int segments_per_turn, Facet inner_facet) {
+  const int n = std::max(
+      1, static_cast<int>(std::ceil((phi1 - phi0) / (2 * kPi) * segments_per_turn)));
   const double step = (phi1 - phi0) / n;
   const double inner = inner_facet == Facet::kInscribed ? r0 : r0 / std::cos(step / 2);
   const auto at = [](double x, double r, double phi) {
     return Eigen::Vector3d(x, r * std::cos(phi), r * std::sin(phi));
   };
   Builder b;
-  // Columns of (outer, inner) points at each arc angle, at both ends; a wedge shares one inner
-  // point per end.
-  std::vector<int> out0, out1, in0, in1;
-  for (int k = 0; k <= n; ++k) {
-    const double phi = phi0 + step * k;
-    out0.push_back(b.add(at(x0, r1, phi)));
-    out1.push_back(b.add(at(x1, r1, phi)));
-    if (r0 > 0 || k == 0) {
-      in0.push_back(b.add(at(x0, inner, phi)));
-      in1.push_back(b.add(at(x1, inner, phi)));
-    } else {
-      in0.push_back(in0.front());
-      in1.push_back(in1.front());
+  // Per station along x: the outer arc, and the inner arc (a wedge: one point on the axis).
+  std::vector<std::vector<int>> out(static_cast<std::size_t>(stations) + 1),
+      in(static_cast<std::size_t>(stations) + 1);
+  for (int s = 0; s <= stations; ++s) {
+    const double x = x0 + (x1 - x0) * s / stations;
+    auto& o = out[static_cast<std::size_t>(s)];
+    auto& i = in[static_cast<std::size_t>(s)];
+    for (int k = 0; k <= n; ++k) {
+      const double phi = phi0 + step * k;
+      o.push_back(b.add(at(x, std::max(r1(x, phi), inner * 1.001), phi)));
+      i.push_back(r0 > 0 || k == 0 ? b.add(at(x, inner, phi)) : i.front());
     }
   }
+  for (int s = 0; s < stations; ++s) {
+    const auto& o0 = out[static_cast<std::size_t>(s)];
+    const auto& o1 = out[static_cast<std::size_t>(s) + 1];
+    const auto& i0 = in[static_cast<std::size_t>(s)];
+    const auto& i1 = in[static_cast<std::size_t>(s) + 1];
+    for (int k = 0; k < n; ++k) {
+      const auto a = static_cast<std::size_t>(k), c = static_cast<std::size_t>(k + 1);
+      b.quad(o0[a], o0[c], o1[c], o1[a]);                  // outer surface
+      if (r0 > 0) b.quad(i0[a], i1[a], i1[c], i0[c]);      // inner arc, facing the axis
+    }
+    // Radial sides at phi0 (facing -phi) and phi1.
+    b.quad(i0.front(), o0.front(), o1.front(), i1.front());
+    b.quad(i0.back(), i1.back(), o1.back(), o0.back());
+  }
+  // End caps at x0 (facing -x) and x1.
+  const auto& o0 = out.front();
+  const auto& i0 = in.front();
+  const auto& o1 = out.back();
+  const auto& i1 = in.back();
   for (int k = 0; k < n; ++k) {
     const auto a = static_cast<std::size_t>(k), c = static_cast<std::size_t>(k + 1);
-    b.quad(out0[a], out0[c], out1[c], out1[a]);  // outer arc, facing away from the axis
     if (r0 > 0) {
-      b.quad(in0[a], in1[a], in1[c], in0[c]);    // inner arc, facing the axis
-      b.quad(in0[a], in0[c], out0[c], out0[a]);  // end x0 (faces -x)
-      b.quad(in1[a], out1[a], out1[c], in1[c]);  // end x1 (faces +x)
+      b.quad(i0[a], i0[c], o0[c], o0[a]);
+      b.quad(i1[a], o1[a], o1[c], i1[c]);
     } else {
-      b.tri(in0[a], out0[c], out0[a]);
-      b.tri(in1[a], out1[a], out1[c]);
+      b.tri(i0[a], o0[c], o0[a]);
+      b.tri(i1[a], o1[a], o1[c]);
     }
   }
-  // Radial sides at phi0 (faces towards -phi) and phi1.
-  b.quad(in0.front(), out0.front(), out1.front(), in1.front());
-  b.quad(in0.back(), in1.back(), out1.back(), out0.back());
   return b.mesh();
 }
 

@@ -26,7 +26,7 @@ struct ClosestApproach {
 struct CrossingPair {
   Eigen::Index triangle_a = -1;  // query mesh
   Eigen::Index triangle_b = -1;  // tree's mesh
-  Eigen::Vector3d point = Eigen::Vector3d::Zero();  // a point near the crossing
+  Eigen::Vector3d point = Eigen::Vector3d::Zero();  // on both triangles (their intersection's middle)
 };
 
 // A tree over one mesh ("b"), queried with others ("a"). Indices must be in range and

@@ -67,6 +67,7 @@ struct JointDesignOptions {
 
 struct BallSocketDesign {
   bool feasible = false;  // some (r, h) satisfies Eq. 6.4's constraints
+  double clearance = 0.0;  // the d it was designed for
   double r = 0.0;         // socket radius
   double h = 0.0;         // neck height above c
   double ball_radius = 0.0;  // r - d
@@ -84,6 +85,7 @@ struct BallSocketDesign {
 
 struct HingeDesign {
   bool feasible = false;
+  double clearance = 0.0;  // the d it was designed for
   double R = 0.0;  // slot radius
   double r = 0.0;  // hole radius (pin radius r - d)
   double b = 0.0;  // slot width
