@@ -12,6 +12,8 @@ find_package(TBB REQUIRED)
 set(CGAL_DO_NOT_WARN_ABOUT_CMAKE_BUILD_TYPE TRUE)
 find_package(CGAL REQUIRED)
 find_package(GTest REQUIRED)
+# fabrication/articulation: skinned characters (glTF, FBX, COLLADA, .x); Debian's libassimp-dev.
+find_package(assimp 5.2 REQUIRED)
 if(HARDCOPY_BENCH)
   find_package(benchmark REQUIRED)
 endif()

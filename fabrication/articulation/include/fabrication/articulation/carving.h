@@ -1,0 +1,63 @@
+// Carving (thesis Sec. 6.4.3): the joints' hulls subtracted from the fabrication mesh in one exact
+// CSG sequence, the result split into its connected parts, each named after the links it holds;
+// and the checks that every joint really separated its two sides. Also the link topology that
+// decides which joints can be cut at all: links that touch through a transition without a joint
+// are one part, so a joint whose two links are already one part, or that would close a loop of
+// parts, cannot work.
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include "common/mesh.h"
+#include "common/progress.h"
+#include "common/status.h"
+#include "fabrication/articulation/joint.h"
+#include "fabrication/articulation/joint_hull.h"
+
+namespace hc::articulation {
+
+// A link pair that touches (a transition of the segmentation), jointed or not.
+struct LinkContact {
+  int a = -1, b = -1;
+};
+
+// Excludes (with a reason) every joint that cannot separate its links or would close a loop of
+// parts, strongest joints first. `joints` may already hold excluded ones.
+void exclude_unseparable_joints(const std::vector<LinkContact>& contacts, int links,
+                                std::vector<Joint>* joints);
+
+struct CarvedPart {
+  std::string name;
+  TriangleMesh mesh;        // closed; metres
+  std::vector<int> links;   // links whose vertices it holds, nearest the root first
+};
+
+struct CarveSummary {
+  int components = 0;
+  bool closed = false;
+  std::int64_t self_intersecting_pairs_after_rounding = 0;
+  std::vector<int> unseparated;  // joints whose two probe points ended in one part
+  double time_s = 0.0;
+};
+
+// Subtracts the hulls of the non-excluded joints from `fabrication` (F) and splits the result.
+// `vertex_link` labels F's vertices; `bone_names` and `bone_depth` name and order the links.
+Result<std::vector<CarvedPart>> carve_parts(const TriangleMesh& fabrication,
+                                            const std::vector<int>& vertex_link,
+                                            const std::vector<std::string>& bone_names,
+                                            const std::vector<int>& bone_depth,
+                                            const std::vector<Joint>& joints,
+                                            const std::vector<JointHull>& hulls,
+                                            ProgressReporter* progress, CarveSummary* summary);
+
+// A point of the joint's moving (child) side and of its fixed (parent) side, inside the material
+// of each after carving: the ball's centre and the socket's shell below it; the knuckle's ring and
+// the pin's axis.
+Eigen::Vector3d child_probe(const Joint& joint);
+Eigen::Vector3d parent_probe(const Joint& joint);
+
+// Connected components of a mesh through shared vertices, each as its own mesh.
+std::vector<TriangleMesh> split_components(const TriangleMesh& mesh);
+
+}  // namespace hc::articulation

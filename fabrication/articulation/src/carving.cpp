@@ -1,0 +1,207 @@
+#include "fabrication/articulation/carving.h"
+
+#include <fmt/format.h>
+
+#include <algorithm>
+#include <chrono>
+#include <map>
+#include <memory>
+#include <numeric>
+
+#include "geometry/csg_sequence.h"
+#include "common/mesh_io.h"
+#include "geometry/mesh_distance.h"
+#include "geometry/mesh_proximity.h"
+
+namespace hc::articulation {
+namespace {
+
+struct DisjointSets {
+  std::vector<int> parent;
+  explicit DisjointSets(int n) : parent(static_cast<std::size_t>(n)) {
+    std::iota(parent.begin(), parent.end(), 0);
+  }
+  int find(int v) {
+    while (parent[static_cast<std::size_t>(v)] != v)
+      v = parent[static_cast<std::size_t>(v)] =
+          parent[static_cast<std::size_t>(parent[static_cast<std::size_t>(v)])];
+    return v;
+  }
+  bool unite(int a, int b) {
+    a = find(a), b = find(b);
+    if (a == b) return false;
+    parent[static_cast<std::size_t>(a)] = b;
+    return true;
+  }
+};
+
+}  // namespace
+
+std::vector<TriangleMesh> split_components(const TriangleMesh& m) {
+  std::vector<int> parent(static_cast<std::size_t>(m.num_vertices()));
+  std::iota(parent.begin(), parent.end(), 0);
+  const auto find = [&](int v) {
+    while (parent[static_cast<std::size_t>(v)] != v)
+      v = parent[static_cast<std::size_t>(v)] = parent[static_cast<std::size_t>(parent[static_cast<std::size_t>(v)])];
+    return v;
+  };
+  for (Eigen::Index t = 0; t < m.num_triangles(); ++t)
+    for (int k = 1; k < 3; ++k)
+      parent[static_cast<std::size_t>(find(m.triangles(t, k)))] = find(m.triangles(t, 0));
+  std::vector<int> component_of_root(parent.size(), -1);
+  std::vector<std::vector<Eigen::Index>> tris;
+  for (Eigen::Index t = 0; t < m.num_triangles(); ++t) {
+    const int root = find(m.triangles(t, 0));
+    int& c = component_of_root[static_cast<std::size_t>(root)];
+    if (c < 0) c = static_cast<int>(tris.size()), tris.emplace_back();
+    tris[static_cast<std::size_t>(c)].push_back(t);
+  }
+  std::vector<TriangleMesh> out;
+  for (const auto& list : tris) {
+    std::vector<int> index(parent.size(), -1);
+    std::vector<int> used;
+    TriangleMesh part;
+    part.triangles.resize(static_cast<Eigen::Index>(list.size()), 3);
+    for (std::size_t i = 0; i < list.size(); ++i)
+      for (int k = 0; k < 3; ++k) {
+        const int v = m.triangles(list[i], k);
+        if (index[static_cast<std::size_t>(v)] < 0)
+          index[static_cast<std::size_t>(v)] = static_cast<int>(used.size()), used.push_back(v);
+        part.triangles(static_cast<Eigen::Index>(i), k) = index[static_cast<std::size_t>(v)];
+      }
+    part.vertices.resize(static_cast<Eigen::Index>(used.size()), 3);
+    for (std::size_t i = 0; i < used.size(); ++i)
+      part.vertices.row(static_cast<Eigen::Index>(i)) = m.vertices.row(used[i]);
+    out.push_back(std::move(part));
+  }
+  return out;
+}
+
+
+void exclude_unseparable_joints(const std::vector<LinkContact>& contacts, int links,
+                                std::vector<Joint>* joints) {
+  while (true) {
+    // Links joined by a contact without a joint are one part.
+    DisjointSets part(links);
+    for (const LinkContact& c : contacts) {
+      bool jointed = false;
+      for (const Joint& j : *joints)
+        jointed = jointed || (!j.excluded && ((j.parent_link == c.a && j.child_link == c.b) ||
+                                              (j.parent_link == c.b && j.child_link == c.a)));
+      if (!jointed) part.unite(c.a, c.b);
+    }
+    std::vector<std::size_t> order;
+    for (std::size_t i = 0; i < joints->size(); ++i)
+      if (!(*joints)[i].excluded) order.push_back(i);
+    std::stable_sort(order.begin(), order.end(), [&](std::size_t x, std::size_t y) {
+      return (*joints)[x].min_area > (*joints)[y].min_area;
+    });
+    DisjointSets tree = part;
+    bool changed = false;
+    for (std::size_t i : order) {
+      Joint& j = (*joints)[i];
+      if (part.find(j.parent_link) == part.find(j.child_link)) {
+        j.excluded = true;
+        j.reason = "its two links also touch where no joint is, so no cut can separate them";
+      } else if (!tree.unite(j.parent_link, j.child_link)) {
+        j.excluded = true;
+        j.reason = "it would close a loop of jointed parts (a stronger joint already links them)";
+      } else {
+        continue;
+      }
+      changed = true;
+      break;  // the excluded joint's contact now joins its links: recompute the parts
+    }
+    if (!changed) return;
+  }
+}
+
+Eigen::Vector3d child_probe(const Joint& j) {
+  if (j.type == JointType::kBall) return j.centre;
+  return j.centre + j.n * 0.5 * (j.hinge.r + j.hinge.R - j.hinge.clearance);
+}
+
+Eigen::Vector3d parent_probe(const Joint& j) {
+  if (j.type == JointType::kBall) return j.centre - j.n * 0.5 * (j.ball.r + j.r_max);
+  return j.centre;
+}
+
+Result<std::vector<CarvedPart>> carve_parts(const TriangleMesh& fabrication,
+                                            const std::vector<int>& vertex_link,
+                                            const std::vector<std::string>& bone_names,
+                                            const std::vector<int>& bone_depth,
+                                            const std::vector<Joint>& joints,
+                                            const std::vector<JointHull>& hulls,
+                                            ProgressReporter* progress, CarveSummary* summary) {
+  const auto start = std::chrono::steady_clock::now();
+  std::vector<geometry::CsgStep> steps;
+  if (getenv("HC_DUMP")) for (std::size_t i = 0; i < joints.size(); ++i) if (!joints[i].excluded) { (void)write_mesh(fmt::format("/tmp/asx/hull_{}.ply", i), hulls[i].hull); } 
+  if (getenv("HC_DUMP")) (void)write_mesh("/tmp/asx/F.ply", fabrication);
+  for (std::size_t i = 0; i < joints.size(); ++i)
+    if (!joints[i].excluded)
+      steps.push_back({geometry::BooleanOperation::kDifference, hulls[i].hull,
+                       fmt::format("hull {} -> {}", joints[i].parent_name, joints[i].child_name)});
+  geometry::CsgOptions options;
+  options.check_operands = false;  // F is checked when built; hulls are exact CSG results
+  options.progress = progress;
+  geometry::CsgSummary csg;
+  HC_ASSIGN_OR_RETURN(const TriangleMesh carved,
+                      geometry::csg_sequence(fabrication, steps, options, &csg));
+  summary->closed = csg.closed;
+  summary->self_intersecting_pairs_after_rounding = csg.self_intersecting_pairs_after_rounding;
+  std::vector<TriangleMesh> pieces = split_components(carved);
+  summary->components = static_cast<int>(pieces.size());
+
+  // Which links each piece holds: the link of F's nearest vertex, by majority.
+  HC_ASSIGN_OR_RETURN(const geometry::MeshDistance f_tree, geometry::MeshDistance::build(fabrication));
+  std::vector<CarvedPart> parts;
+  std::vector<std::unique_ptr<geometry::MeshProximity>> inside;
+  for (TriangleMesh& piece : pieces) {
+    // Votes weighted by area, so that a hull's finely faceted cut does not outvote the
+    // character's own surface.
+    std::map<int, double> votes;
+    for (Eigen::Index f = 0; f < piece.num_triangles(); ++f) {
+      const Eigen::Vector3d a = piece.vertices.row(piece.triangles(f, 0));
+      const Eigen::Vector3d b = piece.vertices.row(piece.triangles(f, 1));
+      const Eigen::Vector3d cc = piece.vertices.row(piece.triangles(f, 2));
+      Eigen::Index t = -1;
+      const Eigen::Vector3d p = f_tree.closest_point((a + b + cc) / 3.0, &t);
+      int best = fabrication.triangles(t, 0);
+      for (int k = 1; k < 3; ++k)
+        if ((fabrication.vertices.row(fabrication.triangles(t, k)).transpose() - p).norm() <
+            (fabrication.vertices.row(best).transpose() - p).norm())
+          best = fabrication.triangles(t, k);
+      votes[vertex_link[static_cast<std::size_t>(best)]] += 0.5 * (b - a).cross(cc - a).norm();
+    }
+    CarvedPart part;
+    int top = -1;
+    double top_votes = 0;
+    for (const auto& [link, count] : votes) {
+      part.links.push_back(link);
+      if (count > top_votes) top = link, top_votes = count;
+    }
+    std::sort(part.links.begin(), part.links.end(), [&](int a, int b) {
+      return bone_depth[static_cast<std::size_t>(a)] < bone_depth[static_cast<std::size_t>(b)];
+    });
+    // Named after the link most of its surface belongs to.
+    part.name = top < 0 ? "part" : bone_names[static_cast<std::size_t>(top)];
+    HC_ASSIGN_OR_RETURN(geometry::MeshProximity tree, geometry::MeshProximity::build(piece));
+    inside.push_back(std::make_unique<geometry::MeshProximity>(std::move(tree)));
+    part.mesh = std::move(piece);
+    parts.push_back(std::move(part));
+  }
+  const auto piece_of = [&](const Eigen::Vector3d& p) {
+    for (std::size_t k = 0; k < inside.size(); ++k)
+      if (inside[k]->contains(p)) return static_cast<int>(k);
+    return -1;
+  };
+  for (std::size_t i = 0; i < joints.size(); ++i) {
+    if (joints[i].excluded) continue;
+    const int a = piece_of(child_probe(joints[i])), b = piece_of(parent_probe(joints[i]));
+    if (a < 0 || b < 0 || a == b) summary->unseparated.push_back(static_cast<int>(i));
+  }
+  summary->time_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  return parts;
+}
+
+}  // namespace hc::articulation

@@ -1,0 +1,266 @@
+#include "fabrication/articulation/joint_hull.h"
+
+#include <fmt/format.h>
+
+#include <algorithm>
+#include <cmath>
+#include <numbers>
+
+#include "geometry/csg_sequence.h"
+
+namespace hc::articulation {
+namespace {
+
+using geometry::BooleanOperation;
+using geometry::CsgStep;
+constexpr double kPi = std::numbers::pi;
+// Fraction of a facet step the neck cone's generatrices are turned by: an irrational amount, so
+// they do not lie in the planes of a symmetric character's edges (a tube's edges through its axis
+// share every rational azimuth), which would leave slivers that rounding folds.
+// The cut surfaces' caps are flat between the rays that place them (7.5 degrees apart with 48
+// segments, 8 stations along a hinge): across a convex edge of the character (a box's corner)
+// the flat cap can dip inside the surface by up to ~sin(7.5 deg) of the distance and cut off a
+// sliver. Each cap vertex is pushed out by this fraction of its distance beyond the margin.
+constexpr double kChordAllowance = 0.15;
+// Longest a ray of a cut surface may stay inside the character, in inscribed radii (a limb of
+// elliptical section 3:1 needs ~3).
+constexpr double kMaxCutReach = 6.0;
+constexpr double kNeckPhase = 0.3819660112501051;  // 2 - golden ratio
+
+using Depth = std::function<double(const Eigen::Vector3d&)>;
+
+CsgStep step(BooleanOperation op, TriangleMesh mesh, const char* name) {
+  return {op, std::move(mesh), name};
+}
+
+// A small sphere (bump or dimple) at `centre`, its UV grid turned by an arbitrary fixed rotation
+// so that none of its vertices or edges lines up with the joint's own spheres and cones (such
+// near-coincidences leave slivers that rounding turns into self-intersections).
+TriangleMesh small_sphere(double radius, int segments, Facet facet, const Eigen::Vector3d& centre) {
+  static const Eigen::Matrix3d kTurn =
+      Eigen::AngleAxisd(0.7, Eigen::Vector3d(1, 2, 3).normalized()).toRotationMatrix();
+  TriangleMesh m = sphere_mesh(radius, segments, facet);
+  for (Eigen::Index v = 0; v < m.num_vertices(); ++v)
+    m.vertices.row(v) = (kTurn * m.vertices.row(v).transpose() + centre).transpose();
+  return m;
+}
+
+// A cut surface must cross the limb, reaching its surface within a few inscribed radii of the
+// joint. A ray of the cut that stays inside much longer runs along the limb (a transition plane
+// tilted along it, as a coarse mesh's few transition edges can give) and would split the limb
+// lengthwise.
+Status check_cut_length(double longest, double r_max) {
+  if (longest <= kMaxCutReach * r_max) return {};
+  return failed_precondition(fmt::format(
+      "a cut surface would run {:.1f} mm inside the character ({:.0f} x r_max): the joint's plane "
+      "does not cross its limb",
+      longest * 1e3, longest / r_max));
+}
+
+// Evaluates the hull's CSG in the joint's frame and moves it to the world.
+Result<TriangleMesh> evaluate(const TriangleMesh& base, std::vector<CsgStep> steps,
+                              const LocalFrame& frame) {
+
+  geometry::CsgOptions options;
+  options.check_operands = false;  // primitives are closed and outward by construction
+  geometry::CsgSummary summary;
+  HC_ASSIGN_OR_RETURN(TriangleMesh local, geometry::csg_sequence(base, steps, options, &summary));
+  if (!summary.closed || local.num_triangles() == 0)
+    return internal_error("joint hull: the CSG result is not a closed mesh");
+  // Carving needs a hull free of self-intersections; rounding the exact result can (rarely) fold
+  // a sliver.
+  if (summary.self_intersecting_pairs_after_rounding > 0)
+    return internal_error(fmt::format("joint hull: rounding left {} self-intersecting pairs",
+                                      summary.self_intersecting_pairs_after_rounding));
+  return transformed(local, frame);
+}
+
+Result<JointHull> ball_hull(const Joint& j, const HullOptions& o, const Depth& depth) {
+  const BallSocketDesign& s = j.ball;
+  const LocalFrame frame = j.frame();
+  const double d = o.clearance_m, m = o.reach_margin_m;
+  JointHull out;
+  double longest = 0.0;  // longest ray of the cut inside the mesh
+  // Reach of a direction given in the joint frame.
+  const auto reach = [&](double extra) {
+    return [&, extra](const Eigen::Vector3d& local_dir) {
+      const double t = exit_distance(depth, j.centre, frame.axes * local_dir);
+      const double r = std::max(t, s.r) + extra + kChordAllowance * t;
+      out.reach_m = std::max(out.reach_m, r);
+      longest = std::max(longest, t);
+      return r;
+    };
+  };
+  const auto psi = [&](double theta) { return s.alpha + j.cone.at(theta) + s.delta; };
+  const auto alpha = [&](double) { return s.alpha; };
+  std::vector<CsgStep> steps;
+  // The socket's cut: the shell between half the neck's angle and psi (the part inside the neck
+  // goes with the neck), its generatrices half a step away from the neck cone's so that no
+  // vertex of one lies on an edge of the other. The neck cone (the child's side) then reaches
+  // past the whole shell, so the shell's inner part goes with it wherever the caps lie.
+  steps.push_back(step(BooleanOperation::kUnion,
+                       cone_sector_mesh(psi, reach(m), o.segments, Facet::kCircumscribed,
+                                        s.alpha / 2, s.r / 2,
+                                        (kNeckPhase + 0.5) * 2 * kPi / o.segments),
+                       "socket cone"));
+  HC_RETURN_IF_ERROR(check_cut_length(longest, j.r_max));
+  // Friction bumps on the ball's equator, three around n; dimples of r_b + d in the socket, when
+  // they fit inside the inscribed sphere.
+  std::vector<Eigen::Vector3d> bumps_local;
+  const double rb = o.bump_radius_m;
+  if (rb > 0 && s.ball_radius + rb + d < j.r_max) {
+    for (int k = 0; k < 3; ++k) {
+      const double t = 2 * kPi * k / 3 + kPi / 6;
+      bumps_local.emplace_back(s.ball_radius * std::sin(t), 0.0, s.ball_radius * std::cos(t));
+    }
+  }
+  const int small = std::max(12, o.segments / 3);
+  for (const Eigen::Vector3d& c : bumps_local) {
+    steps.push_back(step(BooleanOperation::kUnion,
+                         small_sphere(rb + d, small, Facet::kCircumscribed, c), "dimple"));
+  }
+  steps.push_back(step(BooleanOperation::kDifference,
+                       sphere_mesh(s.ball_radius, o.segments, Facet::kInscribed), "ball"));
+  steps.push_back(step(BooleanOperation::kDifference,
+                       cone_sector_mesh(alpha,
+                                        [far = out.reach_m + 2 * m](const Eigen::Vector3d&) {
+                                          return far;
+                                        },
+                                        o.segments, Facet::kInscribed, 0.0, 0.0,
+                                        kNeckPhase * 2 * kPi / o.segments),
+                       "neck cone"));
+  for (const Eigen::Vector3d& c : bumps_local) {
+    steps.push_back(step(BooleanOperation::kDifference,
+                         small_sphere(rb, small - 2, Facet::kInscribed, c), "bump"));
+    out.bumps.push_back(frame.origin + frame.axes * c);
+  }
+  out.bump_radius_m = bumps_local.empty() ? 0.0 : rb;
+  HC_ASSIGN_OR_RETURN(
+      out.hull,
+      evaluate(sphere_mesh(s.r, o.segments, Facet::kCircumscribed), std::move(steps), frame));
+  return out;
+}
+
+Result<JointHull> hinge_hull(const Joint& j, const HullOptions& o, const Depth& depth) {
+  const HingeDesign& h = j.hinge;
+  const LocalFrame frame = j.frame();
+  const double d = o.clearance_m, m = o.reach_margin_m;
+  JointHull out;
+  double longest = 0.0;  // longest ray of the cut inside the mesh
+  const double psi_f = std::min(h.alpha + j.swing.forward + h.delta, 0.97 * kPi);
+  const double psi_b = std::min(h.alpha + j.swing.backward + h.delta, 0.97 * kPi);
+  // Half-extent along the axis: where rays along +-a leave the mesh, from points of the wedge.
+  double half = h.b / 2 + d;
+  for (double phi : {-psi_b, -h.alpha, 0.0, h.alpha, psi_f})
+    for (double t : {0.0, 0.5, 1.0, 1.5, 2.0}) {
+      const Eigen::Vector3d q =
+          j.centre + t * j.r_max * (std::cos(phi) * j.n + std::sin(phi) * j.f());
+      half = std::max({half, exit_distance(depth, q, j.a), exit_distance(depth, q, -j.a)});
+    }
+  half += m;
+  // Outer radius of a wedge at (x, phi): past the mesh along the ray from the axis.
+  const auto reach = [&](double extra) {
+    return [&, extra](double x, double phi) {
+      const Eigen::Vector3d q = j.centre + x * j.a;
+      const Eigen::Vector3d dir = std::cos(phi) * j.n + std::sin(phi) * j.f();
+      const double t = exit_distance(depth, q, dir);
+      const double r = std::max(t, h.R) + extra + kChordAllowance * t;
+      out.reach_m = std::max(out.reach_m, std::hypot(x, r));
+      longest = std::max(longest, t);
+      return r;
+    };
+  };
+  const int stations = 8;
+  const int small = std::max(12, o.segments / 3);
+  std::vector<CsgStep> steps;
+  // The swing wedge frees the cheeks from radius R - d outwards; its inner arc is kept a little
+  // inside the knuckle's (which the knuckle then removes again) so the two surfaces never
+  // coincide, and outside the pin.
+  const double wedge_inner = h.R - d - 0.5 * std::min(d, h.R - d - h.r);
+  steps.push_back(step(BooleanOperation::kUnion,
+                       sector_prism_mesh(wedge_inner, reach(m), -psi_b, psi_f, -half, half,
+                                         stations, o.segments, Facet::kInscribed),
+                       "fork wedge"));
+  HC_RETURN_IF_ERROR(check_cut_length(longest, j.r_max));
+  // Friction bumps on the knuckle's faces, behind the pin (away from the neck).
+  std::vector<Eigen::Vector3d> bumps_local;
+  const double rb = o.bump_radius_m;
+  const double rho = 0.5 * (h.r + h.R - d);
+  if (rb > 0 && rb + d < 0.5 * (h.R - d - h.r)) {
+    for (double side : {-1.0, 1.0})
+      bumps_local.emplace_back(side * (h.b / 2 - d), -rho, 0.0);
+  }
+  for (const Eigen::Vector3d& c : bumps_local) {
+    steps.push_back(step(BooleanOperation::kUnion,
+                         small_sphere(rb + d, small, Facet::kCircumscribed, c), "dimple"));
+  }
+  // K: the knuckle, its neck (a wedge of half-angle alpha within the slot) and the child's body
+  // beyond the cheeks (outside R + d/2). The neck is a hair narrower than the body's wedge and
+  // reaches only into it, so their sides never coincide. Then the hole through the knuckle is
+  // put back and the pin (r - d, into the cheeks) taken out: the gap around the pin.
+  const double knuckle = h.b / 2 - d;
+  steps.push_back(step(BooleanOperation::kDifference,
+                       cylinder_mesh(h.R - d, -knuckle, knuckle, o.segments, Facet::kInscribed,
+                                     0.25),
+                       "knuckle"));
+  const double neck_alpha = 0.998 * h.alpha;
+  // The child's body wedge reaches past every cut surface, so that whatever of K+ lies inside
+  // it is removed whichever way the cuts' caps were interpolated.
+  const double body = out.reach_m + 2 * m;
+  steps.push_back(step(BooleanOperation::kDifference,
+                       sector_prism_mesh(0.0, h.R + d, -neck_alpha, neck_alpha, -knuckle, knuckle,
+                                         o.segments, Facet::kInscribed),
+                       "neck"));
+  steps.push_back(step(BooleanOperation::kDifference,
+                       sector_prism_mesh(h.R + d / 2, [&](double, double) { return body; },
+                                         -h.alpha, h.alpha, -half - m, half + m, 1, o.segments,
+                                         Facet::kCircumscribed),
+                       "child body"));
+  const double hole_end = h.b / 2 - d / 2;
+  steps.push_back(step(BooleanOperation::kUnion,
+                       cylinder_mesh(h.r, -hole_end, hole_end, o.segments,
+                                     Facet::kCircumscribed, 0.75),
+                       "hole"));
+  const double pin_end = h.b / 2 + d;
+  steps.push_back(step(BooleanOperation::kDifference,
+                       cylinder_mesh(h.r - d, -pin_end, pin_end, o.segments, Facet::kInscribed,
+                                     0.5),
+                       "pin"));
+  for (const Eigen::Vector3d& c : bumps_local) {
+    steps.push_back(step(BooleanOperation::kDifference,
+                         small_sphere(rb, small - 2, Facet::kInscribed, c), "bump"));
+    out.bumps.push_back(frame.origin + frame.axes * c);
+  }
+  out.bump_radius_m = bumps_local.empty() ? 0.0 : rb;
+  HC_ASSIGN_OR_RETURN(
+      out.hull, evaluate(cylinder_mesh(h.R, -h.b / 2, h.b / 2, o.segments, Facet::kCircumscribed),
+                         std::move(steps), frame));
+  return out;
+}
+
+}  // namespace
+
+double exit_distance(const Depth& depth, const Eigen::Vector3d& origin,
+                     const Eigen::Vector3d& direction) {
+  const Eigen::Vector3d u = direction.normalized();
+  double t = 0.0;
+  double s = depth(origin);
+  if (s <= 0) return 0.0;
+  const double tolerance = 1e-6 + 1e-4 * s;
+  for (int i = 0; i < 400 && s > tolerance; ++i) {
+    t += s;
+    s = depth(origin + t * u);
+  }
+  return t;
+}
+
+Result<JointHull> build_joint_hull(const Joint& joint, const HullOptions& options,
+                                   const Depth& depth) {
+  if (!joint.feasible())
+    return failed_precondition(fmt::format("joint {} -> {}: no feasible design to build",
+                                           joint.parent_name, joint.child_name));
+  return joint.type == JointType::kBall ? ball_hull(joint, options, depth)
+                                        : hinge_hull(joint, options, depth);
+}
+
+}  // namespace hc::articulation

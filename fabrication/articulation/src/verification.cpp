@@ -1,0 +1,315 @@
+#include "fabrication/articulation/verification.h"
+
+#include <fmt/format.h>
+
+#include <algorithm>
+#include <cmath>
+#include <memory>
+#include <numbers>
+#include <set>
+
+#include "fabrication/printability/mesh_check.h"
+#include "geometry/mesh_proximity.h"
+
+namespace hc::articulation {
+namespace {
+
+constexpr double kPi = std::numbers::pi;
+
+TriangleMesh moved(const TriangleMesh& m, const Eigen::Isometry3d& t) {
+  TriangleMesh out = m;
+  for (Eigen::Index v = 0; v < out.num_vertices(); ++v)
+    out.vertices.row(v) = (t * m.vertices.row(v).transpose()).transpose();
+  return out;
+}
+
+Eigen::Isometry3d rotation_about(const Eigen::Vector3d& c, const Eigen::Matrix3d& r) {
+  Eigen::Isometry3d t = Eigen::Isometry3d::Identity();
+  t.linear() = r;
+  t.translation() = c - r * c;
+  return t;
+}
+
+// Crossing points that are not contacts of a friction bump with its socket or cheek.
+bool real_crossing(const std::vector<geometry::CrossingPair>& pairs,
+                   const std::vector<Eigen::Vector3d>& bumps, double zone) {
+  for (const auto& p : pairs) {
+    bool at_bump = false;
+    for (const Eigen::Vector3d& b : bumps) at_bump = at_bump || (p.point - b).norm() < zone;
+    if (!at_bump) return true;
+  }
+  return false;
+}
+
+// Rotations the ball's range allows at a given relative rotation: the tilt of n clamped to the
+// cone, the twist about n kept.
+Eigen::Matrix3d clamp_to_range(const Joint& j, const Eigen::Matrix3d& r) {
+  if (j.type == JointType::kHinge) {
+    const double angle = std::clamp(rotation_vector(r).dot(j.a), -j.swing.backward, j.swing.forward);
+    return Eigen::AngleAxisd(angle, j.a).toRotationMatrix();
+  }
+  const Eigen::Vector3d m = r * j.n;
+  const Eigen::Vector3d side = m - m.dot(j.n) * j.n;
+  const double tilt = std::atan2(side.norm(), m.dot(j.n));
+  if (side.norm() < 1e-12) return r;
+  const double theta = std::atan2(side.dot(j.a), side.dot(j.f()));
+  const double limit = j.cone.at(theta);
+  if (tilt <= limit) return r;
+  const Eigen::Quaterniond q(r);
+  return Eigen::Quaterniond::Identity().slerp(limit / tilt, q).toRotationMatrix();
+}
+
+struct Sets {
+  TriangleMesh moving, fixed;
+};
+
+Sets split_sets(const std::vector<CarvedPart>& parts, const std::vector<int>& moving) {
+  std::vector<TriangleMesh> a, b;
+  for (std::size_t p = 0; p < parts.size(); ++p)
+    (std::find(moving.begin(), moving.end(), static_cast<int>(p)) != moving.end() ? a : b)
+        .push_back(parts[p].mesh);
+  return {concatenated(a), concatenated(b)};
+}
+
+// The joint's poses for the sweep: hinge swings; the ball's cone in 8 directions at full tilt
+// and the twist about n.
+std::vector<Eigen::Matrix3d> sweep_rotations(const Joint& j, double step) {
+  std::vector<Eigen::Matrix3d> out;
+  if (j.type == JointType::kHinge) {
+    for (double g = step; g <= j.swing.forward + 1e-9; g += step)
+      out.push_back(Eigen::AngleAxisd(g, j.a).toRotationMatrix());
+    for (double g = step; g <= j.swing.backward + 1e-9; g += step)
+      out.push_back(Eigen::AngleAxisd(-g, j.a).toRotationMatrix());
+    return out;
+  }
+  for (int k = 0; k < 8; ++k) {
+    const double theta = 2 * kPi * k / 8;
+    const Eigen::Vector3d dir = std::cos(theta) * j.f() + std::sin(theta) * j.a;
+    const Eigen::Vector3d axis = j.n.cross(dir).normalized();
+    for (double frac : {0.5, 1.0})
+      out.push_back(Eigen::AngleAxisd(frac * j.cone.at(theta), axis).toRotationMatrix());
+  }
+  for (double twist : {-kPi / 4, kPi / 4}) out.push_back(Eigen::AngleAxisd(twist, j.n).toRotationMatrix());
+  return out;
+}
+
+}  // namespace
+
+Result<PartTree> part_tree(const std::vector<CarvedPart>& parts, const std::vector<Joint>& joints) {
+  PartTree t;
+  std::vector<std::unique_ptr<geometry::MeshProximity>> inside;
+  for (const CarvedPart& p : parts) {
+    HC_ASSIGN_OR_RETURN(geometry::MeshProximity tree, geometry::MeshProximity::build(p.mesh));
+    inside.push_back(std::make_unique<geometry::MeshProximity>(std::move(tree)));
+  }
+  const auto piece_of = [&](const Eigen::Vector3d& x) {
+    for (std::size_t k = 0; k < inside.size(); ++k)
+      if (inside[k]->contains(x)) return static_cast<int>(k);
+    return -1;
+  };
+  t.joint_parent_part.assign(joints.size(), -1);
+  t.joint_child_part.assign(joints.size(), -1);
+  t.moving.assign(joints.size(), {});
+  std::vector<char> is_child(parts.size(), 0);
+  for (std::size_t i = 0; i < joints.size(); ++i) {
+    if (joints[i].excluded) continue;
+    t.joint_parent_part[i] = piece_of(parent_probe(joints[i]));
+    t.joint_child_part[i] = piece_of(child_probe(joints[i]));
+    if (t.joint_child_part[i] >= 0) is_child[static_cast<std::size_t>(t.joint_child_part[i])] = 1;
+  }
+  for (std::size_t p = 0; p < parts.size(); ++p)
+    if (!is_child[p]) {
+      t.root = static_cast<int>(p);
+      break;
+    }
+  for (std::size_t i = 0; i < joints.size(); ++i) {
+    if (t.joint_child_part[i] < 0 || t.joint_parent_part[i] < 0) continue;
+    std::vector<int> set{t.joint_child_part[i]};
+    for (std::size_t k = 0; k < set.size(); ++k)
+      for (std::size_t e = 0; e < joints.size(); ++e)
+        if (t.joint_parent_part[e] == set[k] && t.joint_child_part[e] >= 0 &&
+            t.joint_child_part[e] != t.joint_parent_part[i] &&
+            std::find(set.begin(), set.end(), t.joint_child_part[e]) == set.end())
+          set.push_back(t.joint_child_part[e]);
+    t.moving[i] = set;
+  }
+  return t;
+}
+
+Result<VerificationReport> verify_articulation(const std::vector<CarvedPart>& parts,
+                                               const std::vector<Joint>& joints,
+                                               const std::vector<JointHull>& hulls,
+                                               const LinkMotion* motion,
+                                               const std::vector<Clip>& clips,
+                                               const VerificationOptions& options,
+                                               ProgressReporter* progress) {
+  VerificationReport r;
+  const double d = options.clearance_m;
+  ProgressTask task(progress, "verification", parts.size() + joints.size());
+  // Parts.
+  r.parts_valid = !parts.empty();
+  for (const CarvedPart& p : parts) {
+    fabrication::MeshCheckOptions check;
+    check.check_self_intersections = options.check_self_intersections;
+    HC_ASSIGN_OR_RETURN(const fabrication::MeshCheckReport c, fabrication::check_mesh(p.mesh, check));
+    PartCheck pc{p.name, c.closed, c.manifold,
+                 c.self_intersections_checked ? c.self_intersecting_pairs : -1, c.volume};
+    if (!c.closed || !c.manifold || pc.self_intersecting_pairs > 0) {
+      r.parts_valid = false;
+      r.problems.push_back(fmt::format("part {} is not a valid solid", p.name));
+    }
+    r.parts.push_back(pc);
+    task.advance();
+  }
+  int accepted = 0;
+  for (const Joint& j : joints) accepted += j.excluded ? 0 : 1;
+  r.expected_parts = accepted + 1;
+  if (static_cast<int>(parts.size()) != r.expected_parts)
+    r.problems.push_back(fmt::format("{} parts for {} joints (a tree has {})", parts.size(),
+                                     accepted, r.expected_parts));
+  // Clearance between parts.
+  std::vector<std::unique_ptr<geometry::MeshProximity>> trees;
+  for (const CarvedPart& p : parts) {
+    HC_ASSIGN_OR_RETURN(geometry::MeshProximity t, geometry::MeshProximity::build(p.mesh));
+    trees.push_back(std::make_unique<geometry::MeshProximity>(std::move(t)));
+  }
+  std::vector<Eigen::Vector3d> all_bumps;
+  double bump_zone = 0.0;
+  for (std::size_t i = 0; i < joints.size(); ++i)
+    if (!joints[i].excluded && i < hulls.size()) {
+      for (const auto& b : hulls[i].bumps) all_bumps.push_back(b);
+      bump_zone = std::max(bump_zone, 1.2 * (hulls[i].bump_radius_m + d));
+    }
+  for (std::size_t a = 0; a < parts.size(); ++a)
+    for (std::size_t b = a + 1; b < parts.size(); ++b) {
+      HC_ASSIGN_OR_RETURN(const geometry::ClosestApproach c,
+                          trees[b]->closest_approach(parts[a].mesh, 2 * d));
+      if (c.found && (r.min_part_distance_m < 0 || c.distance < r.min_part_distance_m)) {
+        r.min_part_distance_m = c.distance;
+        r.closest_parts = parts[a].name + "/" + parts[b].name;
+      }
+    }
+  if (r.min_part_distance_m >= 0 && r.min_part_distance_m < 0.99 * d)
+    r.problems.push_back(fmt::format("parts {} are {:.3f} mm apart (clearance {:.3f} mm)",
+                                     r.closest_parts, r.min_part_distance_m * 1e3, d * 1e3));
+
+  HC_ASSIGN_OR_RETURN(const PartTree tree, part_tree(parts, joints));
+  for (std::size_t i = 0; i < joints.size(); ++i) {
+    const Joint& j = joints[i];
+    if (j.excluded) continue;
+    task.advance();
+    JointCheck jc;
+    jc.joint = static_cast<int>(i);
+    jc.parent_part = tree.joint_parent_part[i];
+    jc.child_part = tree.joint_child_part[i];
+    if (jc.parent_part < 0 || jc.child_part < 0 || jc.parent_part == jc.child_part) {
+      r.problems.push_back(fmt::format("joint {} -> {} did not separate its sides",
+                                       j.parent_name, j.child_name));
+      r.joints.push_back(jc);
+      continue;
+    }
+    if (j.type == JointType::kBall) {
+      // Pull a ball (radius r' less a hair) out along n: the lip must stop it.
+      jc.ball_held = false;
+      const TriangleMesh ball = sphere_mesh(j.ball.ball_radius * 0.995, 32, Facet::kInscribed);
+      for (double t = j.ball.r / 16; t <= 2 * j.ball.r && !jc.ball_held; t += j.ball.r / 16) {
+        TriangleMesh at = ball;
+        at.vertices.rowwise() += (j.centre + t * j.n).transpose();
+        HC_ASSIGN_OR_RETURN(const auto hit, trees[static_cast<std::size_t>(jc.parent_part)]->crossings(at, 1));
+        jc.ball_held = !hit.empty();
+      }
+      if (!jc.ball_held)
+        r.problems.push_back(fmt::format("ball {} -> {} can leave its socket", j.parent_name, j.child_name));
+    }
+    if (options.sweeps) {
+      const Sets sets = split_sets(parts, tree.moving[i]);
+      HC_ASSIGN_OR_RETURN(const geometry::MeshProximity fixed, geometry::MeshProximity::build(sets.fixed));
+      for (const Eigen::Matrix3d& rot : sweep_rotations(j, options.sweep_step_rad)) {
+        const Eigen::Isometry3d pose = rotation_about(j.centre, rot);
+        ++jc.sweep_poses;
+        HC_ASSIGN_OR_RETURN(const auto hits, fixed.crossings(moved(sets.moving, pose), 64));
+        std::vector<Eigen::Vector3d> bumps;
+        for (const auto& b : hulls[i].bumps) bumps.push_back(pose * b);
+        if (real_crossing(hits, bumps, bump_zone)) ++jc.sweep_collisions;
+      }
+      if (jc.sweep_collisions > 0)
+        r.problems.push_back(fmt::format("joint {} -> {}: {} of {} range poses collide",
+                                         j.parent_name, j.child_name, jc.sweep_collisions,
+                                         jc.sweep_poses));
+    }
+    r.joints.push_back(jc);
+  }
+
+  // Clip replay on the rigid parts.
+  int frames_total = 0, free_total = 0;
+  if (options.replay && motion != nullptr) {
+    for (std::size_t c = 0; c < clips.size() && c < motion->transforms.size(); ++c) {
+      ClipReplay replay;
+      replay.clip = clips[c].name;
+      const auto& frames = motion->transforms[c];
+      const int n = static_cast<int>(frames.size());
+      const int stride = std::max(1, n / options.max_frames_per_clip);
+      std::set<std::string> pairs_seen;
+      for (int f = 0; f < n; f += stride) {
+        // Forward kinematics over the part tree: root fixed, each child turned about its joint.
+        std::vector<Eigen::Isometry3d> pose(parts.size(), Eigen::Isometry3d::Identity());
+        std::vector<char> done(parts.size(), 0);
+        done[static_cast<std::size_t>(tree.root)] = 1;
+        for (bool progress_made = true; progress_made;) {
+          progress_made = false;
+          for (std::size_t i = 0; i < joints.size(); ++i) {
+            const int pp = tree.joint_parent_part[i], cp = tree.joint_child_part[i];
+            if (joints[i].excluded || pp < 0 || cp < 0 || !done[static_cast<std::size_t>(pp)] ||
+                done[static_cast<std::size_t>(cp)])
+              continue;
+            const auto& fr = frames[static_cast<std::size_t>(f)];
+            const Eigen::Matrix3d rel = fr[static_cast<std::size_t>(joints[i].parent_link)].linear().transpose() *
+                                        fr[static_cast<std::size_t>(joints[i].child_link)].linear();
+            pose[static_cast<std::size_t>(cp)] =
+                pose[static_cast<std::size_t>(pp)] *
+                rotation_about(joints[i].centre, clamp_to_range(joints[i], rel));
+            done[static_cast<std::size_t>(cp)] = 1;
+            progress_made = true;
+          }
+        }
+        std::vector<Eigen::Vector3d> bumps;
+        for (std::size_t i = 0; i < joints.size(); ++i)
+          if (!joints[i].excluded && tree.joint_child_part[i] >= 0)
+            for (const auto& b : hulls[i].bumps)
+              bumps.push_back(pose[static_cast<std::size_t>(tree.joint_child_part[i])] * b);
+        bool collided = false;
+        std::vector<TriangleMesh> posed;
+        for (std::size_t p = 0; p < parts.size(); ++p) posed.push_back(moved(parts[p].mesh, pose[p]));
+        for (std::size_t a = 0; a < parts.size(); ++a)
+          for (std::size_t b = a + 1; b < parts.size(); ++b) {
+            const Eigen::AlignedBox3d ba(posed[a].vertices.colwise().minCoeff().transpose(),
+                                         posed[a].vertices.colwise().maxCoeff().transpose());
+            const Eigen::AlignedBox3d bb(posed[b].vertices.colwise().minCoeff().transpose(),
+                                         posed[b].vertices.colwise().maxCoeff().transpose());
+            if (!ba.intersects(bb)) continue;
+            HC_ASSIGN_OR_RETURN(const geometry::MeshProximity pb, geometry::MeshProximity::build(posed[b]));
+            HC_ASSIGN_OR_RETURN(const auto hits, pb.crossings(posed[a], 64));
+            if (real_crossing(hits, bumps, bump_zone)) {
+              collided = true;
+              pairs_seen.insert(parts[a].name + "/" + parts[b].name);
+            }
+          }
+        ++replay.frames;
+        if (!collided) ++replay.collision_free;
+      }
+      replay.share = replay.frames > 0 ? double(replay.collision_free) / replay.frames : 1.0;
+      replay.colliding_pairs.assign(pairs_seen.begin(), pairs_seen.end());
+      frames_total += replay.frames;
+      free_total += replay.collision_free;
+      r.clips.push_back(std::move(replay));
+    }
+  }
+  r.replay_share = frames_total > 0 ? double(free_total) / frames_total : 1.0;
+  if (r.replay_share < options.replay_required_share)
+    r.problems.push_back(fmt::format("clip replay: {:.0f} % of frames without collision (< {:.0f} %)",
+                                     100 * r.replay_share, 100 * options.replay_required_share));
+  r.ok = r.problems.empty();
+  return r;
+}
+
+}  // namespace hc::articulation

@@ -1,0 +1,170 @@
+// The whole pipeline on small inputs: a synthetic skinned arm animated about a known hinge axis,
+// the same arm without clips (a default ball joint), and the smallest real character
+// (RiggedSimple.glb). The carved parts are checked with the geometry target's predicates:
+// closed, manifold, free of self-intersections, d apart, the ball held, the range swept and the
+// clip replayed without collision.
+#include "fabrication/articulation/articulate.h"
+
+#include <gtest/gtest.h>
+
+#include <numbers>
+
+#include "fabrication/articulation/skinned_io.h"
+#include "synthetic_skinned.h"
+
+namespace hc::articulation {
+namespace {
+
+constexpr double kDeg = std::numbers::pi / 180;
+constexpr double kMm = 1e-3;
+
+#if defined(__has_feature)
+#if __has_feature(address_sanitizer)
+#define HC_UNDER_ASAN 1
+#endif
+#endif
+
+// A 16 mm thick, 90 mm long arm of two bones; the elbow at 45 mm.
+SkinnedCharacter arm() {
+  testing::SyntheticLimb limb;
+  limb.segments = 24;
+  limb.rings = 25;
+  return testing::skinned_limb(limb);
+}
+
+void expect_valid(const ArticulateResult& r, double clearance) {
+  const VerificationReport& v = r.verification;
+  EXPECT_TRUE(v.parts_valid);
+  for (const PartCheck& p : v.parts) {
+    EXPECT_TRUE(p.closed) << p.name;
+    EXPECT_TRUE(p.manifold) << p.name;
+    EXPECT_EQ(p.self_intersecting_pairs, 0) << p.name;
+    EXPECT_GT(p.volume_m3, 0) << p.name;
+  }
+  EXPECT_EQ(static_cast<int>(r.parts.size()), r.accepted() + 1);
+  // The joint's clearance gap is the closest approach of the parts (faceting only widens it).
+  ASSERT_GE(v.min_part_distance_m, 0.0);
+  EXPECT_GE(v.min_part_distance_m, 0.99 * clearance);
+  for (const Joint& j : r.joints) {
+    if (!j.excluded) {
+      EXPECT_GE(j.min_area, 10 * kMm * kMm) << j.child_name;
+    }
+  }
+  for (const JointCheck& jc : v.joints) {
+    EXPECT_TRUE(jc.ball_held);
+    EXPECT_GT(jc.sweep_poses, 0);
+    EXPECT_EQ(jc.sweep_collisions, 0);
+  }
+  EXPECT_TRUE(v.ok) << (v.problems.empty() ? "" : v.problems.front());
+}
+
+TEST(Articulate, SyntheticArmAnimatedAboutAnAxisBecomesAHingeWithThatAxis) {
+#ifdef HC_UNDER_ASAN
+  GTEST_SKIP() << "CGAL's exact booleans take minutes under AddressSanitizer; the Release stage "
+                  "runs this test";
+#endif
+  SkinnedCharacter c = arm();
+  const Eigen::Vector3d axis = Eigen::Vector3d(1, 0, 0.3).normalized();
+  c.clips.push_back(testing::rotation_clip(c, 1, axis, Eigen::Vector3d(0, 0.045, 0), 15 * kDeg,
+                                           30 * kDeg, 31));
+  ArticulateOptions o;
+  Result<ArticulateResult> r = articulate(c, o);
+  ASSERT_TRUE(r.ok()) << r.status().to_string();
+  ASSERT_EQ(r->accepted(), 1);
+  const Joint& j = r->joints.front();
+  EXPECT_EQ(j.type, JointType::kHinge);
+  EXPECT_EQ(j.source, JointSource::kAnimation);
+  EXPECT_LT(std::acos(std::abs(j.a.dot(axis))), 2 * kDeg);
+  EXPECT_NEAR(j.swing.forward, 45 * kDeg, 2 * kDeg);
+  EXPECT_NEAR(j.swing.backward, 15 * kDeg, 2 * kDeg);
+  expect_valid(*r, o.printer.clearance_m);
+  ASSERT_EQ(r->verification.clips.size(), 1u);
+  EXPECT_GE(r->verification.clips[0].share, 0.95);
+}
+
+TEST(Articulate, SyntheticArmWithoutClipsGetsADefaultBall) {
+#ifdef HC_UNDER_ASAN
+  GTEST_SKIP() << "CGAL's exact booleans take minutes under AddressSanitizer; the Release stage "
+                  "runs this test";
+#endif
+  const SkinnedCharacter c = arm();
+  ArticulateOptions o;
+  Result<ArticulateResult> r = articulate(c, o);
+  ASSERT_TRUE(r.ok()) << r.status().to_string();
+  ASSERT_EQ(r->accepted(), 1);
+  const Joint& j = r->joints.front();
+  EXPECT_EQ(j.type, JointType::kBall);
+  EXPECT_EQ(j.source, JointSource::kDefault);
+  // On the tube's axis at the elbow, with the tube's radius as r_max (faceting: within 2 %).
+  EXPECT_LT(std::hypot(j.centre.x(), j.centre.z()), 0.1 * kMm);
+  EXPECT_NEAR(j.centre.y(), 0.045, 2.5 * kMm);
+  EXPECT_NEAR(j.r_max, 8 * kMm, 0.02 * 8 * kMm);
+  expect_valid(*r, o.printer.clearance_m);
+}
+
+TEST(Articulate, UserOverridesTurnTheJointIntoAHinge) {
+#ifdef HC_UNDER_ASAN
+  GTEST_SKIP() << "CGAL's exact booleans take minutes under AddressSanitizer; the Release stage "
+                  "runs this test";
+#endif
+  const SkinnedCharacter c = arm();
+  ArticulateOptions o;
+  Result<JointOverrides> u = parse_joint_overrides(
+      "joints:\n  - child: bone1\n    type: hinge\n    swing_deg: [60, 10]\n", "joints.yaml");
+  ASSERT_TRUE(u.ok()) << u.status().to_string();
+  o.overrides = *u;
+  o.verify = false;
+  Result<ArticulateResult> r = articulate(c, o);
+  ASSERT_TRUE(r.ok()) << r.status().to_string();
+  ASSERT_EQ(r->accepted(), 1);
+  EXPECT_EQ(r->joints.front().type, JointType::kHinge);
+  EXPECT_EQ(r->joints.front().source, JointSource::kUser);
+  EXPECT_NEAR(r->joints.front().swing.forward, 60 * kDeg, 1e-12);
+  EXPECT_EQ(r->parts.size(), 2u);
+}
+
+TEST(Articulate, OverridesAndProfilesRejectBadYamlWithFileAndLine) {
+  Result<JointOverrides> u = parse_joint_overrides(
+      "joints:\n  - child: a\n    type: socket\n", "joints.yaml");
+  ASSERT_FALSE(u.ok());
+  EXPECT_NE(u.status().message().find("joints.yaml:3"), std::string::npos) << u.status().message();
+  Result<PrinterProfile> p = parse_printer_profile("base: fdm\nclearance_mm: -1\n", "p.yaml");
+  ASSERT_FALSE(p.ok());
+  EXPECT_NE(p.status().message().find("p.yaml:2"), std::string::npos) << p.status().message();
+  Result<PrinterProfile> fdm = parse_printer_profile("base: fdm\nmin_area_mm2: 20\n", "p.yaml");
+  ASSERT_TRUE(fdm.ok());
+  EXPECT_NEAR(fdm->clearance_m, 0.4 * kMm, 1e-15);  // the FDM clearance
+  EXPECT_NEAR(fdm->min_area_m2, 20e-6, 1e-18);
+  EXPECT_TRUE(fdm->pins_upright);
+  Result<PrinterProfile> polyjet = builtin_printer_profile("polyjet");
+  ASSERT_TRUE(polyjet.ok());
+  // Thesis Sec. 6.5: d = 0.3 mm, A_min = 10 mm^2, r_b = 0.7 mm.
+  EXPECT_NEAR(polyjet->clearance_m, 0.3 * kMm, 1e-15);
+  EXPECT_NEAR(polyjet->min_area_m2, 10e-6, 1e-18);
+  EXPECT_NEAR(polyjet->bump_radius_m, 0.7 * kMm, 1e-15);
+  EXPECT_NEAR(builtin_printer_profile("sla")->clearance_m, 0.25 * kMm, 1e-15);
+}
+
+TEST(Articulate, RiggedSimpleGivesTwoPartsOrAClearReason) {
+#ifdef HC_UNDER_ASAN
+  GTEST_SKIP() << "CGAL's exact booleans take minutes under AddressSanitizer; the Release stage "
+                  "runs this test";
+#endif
+  SkinnedReadOptions read;
+  read.target_height_m = 0.08;
+  Result<SkinnedCharacter> c =
+      read_skinned_character(std::string(HARDCOPY_SHARED_DATA) + "/skinned/RiggedSimple.glb", read);
+  ASSERT_TRUE(c.ok());
+  ArticulateOptions o;
+  Result<ArticulateResult> r = articulate(*c, o);
+  ASSERT_TRUE(r.ok()) << r.status().to_string();
+  ASSERT_EQ(r->joints.size(), 1u);
+  if (r->accepted() == 1) {
+    expect_valid(*r, o.printer.clearance_m);
+  } else {
+    EXPECT_FALSE(r->joints.front().reason.empty());
+  }
+}
+
+}  // namespace
+}  // namespace hc::articulation
