@@ -17,6 +17,7 @@
 #include "rig_daemon/daemon/rig_config.h"
 #include "sim_session.h"
 #include "test_data.h"
+#include "sanitizer.h"
 
 namespace hc::calib {
 namespace {
@@ -31,6 +32,7 @@ using hc::testing::ScratchDir;
 // is nearly indistinguishable from its orientation, which swings the whole rig about camera 0
 // (synthetic_rig_test.cpp's header).
 TEST(SimRigSession, CalibrationCaptureRecoversTrueCameras) {
+  HC_SKIP_WHEN_SANITIZED("~3 min: a rendered 7-camera capture");
   ScratchDir dir;
   Result<rig::RigConfig> cfg =
       rig::load_rig_config(hc::testing::source_dir() / "rig_daemon/examples/rig_sim_hires.yaml");

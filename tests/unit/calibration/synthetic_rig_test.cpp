@@ -53,6 +53,7 @@
 #include "calibration/cameras/board.h"
 #include "calibration/cameras/calibrate.h"
 #include "calibration/cameras/synthetic.h"
+#include "sanitizer.h"
 
 namespace hc::calib {
 namespace {
@@ -204,12 +205,14 @@ TEST(SyntheticRig, CaptureThreeCamerasNoise02) {
   solver_case({.cameras = 3, .sigma = 0.2, .poses = 60, .seed = 11});
 }
 TEST(SyntheticRig, CaptureSevenCamerasNoise01) {
+  HC_SKIP_WHEN_SANITIZED("~1 min: 7 cameras rendered and adjusted");
   solver_case({.cameras = 7, .sigma = 0.1, .poses = 60, .seed = 21});
 }
 // At 0.3 px the 0.1 mm needs a few hundred poses (header: 40 poses gave 0.175 mm RMS over 6 seeds,
 // errors go as 1 / sqrt(poses)). 300 poses: 0.054 mm gauge-free, 0.37 mm raw (200 poses: 0.066 /
 // 0.54 mm); ~8 s in Release, most of it the covariance.
 TEST(SyntheticRig, CaptureSevenCamerasNoise03) {
+  HC_SKIP_WHEN_SANITIZED("~2 min: 7 cameras rendered and adjusted");
   solver_case({.cameras = 7,
                .sigma = 0.3,
                .poses = 300,
@@ -294,6 +297,7 @@ TEST(SyntheticRig, DisconnectedCameraIsAnError) {
 // geometry (header) and full resolution. CI size: 3 cameras, 12 poses; bench_calibration renders
 // 7 cameras x 30 poses (0.016 mm gauge-free, 0.064 mm raw).
 TEST(SyntheticRig, CaptureThreeCamerasRenderedImages) {
+  HC_SKIP_WHEN_SANITIZED("~2 min: rendered images detected");
   const std::vector<CameraModel> truth = make_half_circle_rig(capture_rig_options(3));
   const BoardSpec b = capture_board();
   const auto P = random_board_poses(truth, b, capture_board_poses(12, 77));

@@ -13,6 +13,7 @@
 #include "rig_daemon/daemon/rig_config.h"
 #include "sim_session.h"
 #include "test_data.h"
+#include "sanitizer.h"
 
 namespace hc::calib {
 namespace {
@@ -39,6 +40,7 @@ trigger: {rate_hz: 100, pulse_width_s: 0.001}
 )";
 
 TEST(HandEyeSession, SimulatedAutomatedSessionRecoversCam0Pose) {
+  HC_SKIP_WHEN_SANITIZED("~1 min: a rendered capture tracked");
   ScratchDir dir;
   Result<std::filesystem::path> session = hc::testing::record_simulated_session(
       std::string(rig::kEmbeddedDefaultRigConfig), std::string(kPlan), dir.path());
@@ -106,6 +108,7 @@ world:
 )";
 
 TEST(HandEyeSession, LargeShaftMarkersSetApartByTheTrackerAreUsed) {
+  HC_SKIP_WHEN_SANITIZED("~2 min: a rendered capture tracked");
   ScratchDir dir;
   // Three locations (not collinear), the plan's minimum of 30 steps each, three cameras.
   std::string plan_text(kPlan);

@@ -24,6 +24,7 @@
 #include "rig_daemon/recording/mcap_reader.h"
 #include "session_support.h"
 #include "test_data.h"
+#include "sanitizer.h"
 
 namespace hc::rig {
 namespace {
@@ -121,6 +122,7 @@ class Rigd {
 };
 
 TEST(Rigd, EveryExamplePlanAssociatesFully) {
+  HC_SKIP_WHEN_SANITIZED("~4 min: every example plan captured in real time");
   ScratchDir dir;
   Rigd rigd(dir.path());
   ASSERT_TRUE(std::filesystem::exists(rigd.socket())) << "rigd did not start";

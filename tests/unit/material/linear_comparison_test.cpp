@@ -9,6 +9,7 @@
 #include "hyperelastic_reference.h"
 #include "processing/fem/material_model.h"
 #include "processing/material/fit.h"
+#include "sanitizer.h"
 
 namespace hc::material {
 namespace {
@@ -18,6 +19,7 @@ double max_displacement(const TetMesh& mesh, const MatrixX3d& x) {
 }
 
 TEST(LinearComparison, DataDrivenFollowsReferenceLinearUnderThenOverEstimates) {
+  HC_SKIP_WHEN_SANITIZED("~1 min: fits");
   testing::HyperelasticReference ref;
   ref.mesh = testing::box_mesh(4, 4, 2, 0.04, 0.04, 0.02);
   // Foam-like: soft at small strain, strongly stiffening (beta) as it is compressed.

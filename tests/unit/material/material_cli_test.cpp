@@ -11,6 +11,7 @@
 
 #include "cli_run.h"
 #include "test_data.h"
+#include "sanitizer.h"
 
 namespace hc::material {
 namespace {
@@ -19,6 +20,7 @@ using hc::testing::CliRun;
 using hc::testing::hardcopy;
 
 TEST(MaterialCli, SynthFitEvaluateRoundTrip) {
+  HC_SKIP_WHEN_SANITIZED("~1 min: synth, fit and evaluate");
   hc::testing::ScratchDir dir;
   std::ofstream(dir / "scene.json")
       << R"({"specimen": {"box_m": [0.04, 0.04, 0.02], "cells": [4, 4, 2]},

@@ -111,23 +111,11 @@
 
 #include "hyperelastic_reference.h"
 #include "processing/material/fit.h"
+#include "sanitizer.h"
 
-#if defined(__SANITIZE_ADDRESS__)
-#define HC_NOISE_STUDY_ASAN 1
-#elif defined(__has_feature)
-#if __has_feature(address_sanitizer)
-#define HC_NOISE_STUDY_ASAN 1
-#endif
-#endif
 
 namespace hc::material {
 namespace {
-
-#if HC_NOISE_STUDY_ASAN
-constexpr bool kUnderAddressSanitizer = true;
-#else
-constexpr bool kUnderAddressSanitizer = false;
-#endif
 
 constexpr double kNoisyRegularization = 0.01;
 constexpr double kPoissonPrior = 0.1;
@@ -207,6 +195,7 @@ Samples clean_examples() {
 // for other compilers' rounding; the noise-free bound is the thesis's 0.3 %. The sanitizer stage
 // runs this one (~6 min there).
 TEST(NoiseStudy, ErrorsWithinMeasuredBounds) {
+  HC_SKIP_WHEN_SANITIZED("~8 min: 9 examples fitted per noise level");
   const Samples clean = clean_examples();
   ASSERT_GT(clean.examples.size(), 0u);
   const char* seed_env = std::getenv("HC_NOISE_SEED");
@@ -223,9 +212,7 @@ TEST(NoiseStudy, ErrorsWithinMeasuredBounds) {
 // 2.89 / 3.73 % (g++ 12 Release). The streams are the ones the joint fit's weights were chosen on
 // (fit.h); five others (11-15), not used for the choice, gave 1.79 / 2.49 / 3.19 %.
 TEST(NoiseStudy, MeanErrorsNoWorseThanTheThesis) {
-  if (kUnderAddressSanitizer)
-    GTEST_SKIP() << "~25 min under AddressSanitizer; the Release stage runs it, and "
-                    "ErrorsWithinMeasuredBounds runs the same code here";
+  HC_SKIP_WHEN_SANITIZED("~25 min: 16 fits of 9 examples");
   const Samples clean = clean_examples();
   ASSERT_GT(clean.examples.size(), 0u);
   EXPECT_LE(noise_study_error(clean, 0, 2026), kThesis[0]);  // no noise: one run is the mean

@@ -198,7 +198,11 @@ TEST(Options, ValidateAndSwitches) {
   o.max_volume = 0.1;
   EXPECT_EQ(o.tetgen_switches(), "pq1.414a0.1Q");
   o.max_radius_edge_ratio = 0.9;
-  EXPECT_THAT(o.validate().message(), HasSubstr(">= 1.0"));
+  EXPECT_THAT(o.validate().message(), HasSubstr(">= 1.1"));
+  o.max_radius_edge_ratio = 1.05;  // below TetGen's practical termination bound
+  EXPECT_FALSE(o.validate().ok());
+  o.max_radius_edge_ratio = 1.1;
+  EXPECT_TRUE(o.validate().ok());
   o.max_radius_edge_ratio = 2;
   o.max_volume = -1;
   EXPECT_FALSE(o.validate().ok());

@@ -12,6 +12,7 @@
 #include "fabrication/printability/mesh_check.h"
 #include "fabrication/printability/mesh_repair.h"
 #include "test_data.h"
+#include "sanitizer.h"
 
 namespace hc::fabrication {
 namespace {
@@ -135,6 +136,7 @@ TEST(MeshCorpus, RepairMakesBlobbyShuffledPrintable) {
 // Property over the whole corpus: repair never turns a printable mesh unprintable, its summary
 // agrees with a fresh check of its output, and a second repair finds nothing to do.
 TEST(MeshCorpus, RepairIsSafeTruthfulAndIdempotent) {
+  HC_SKIP_WHEN_SANITIZED("~1 min: the whole corpus");
   for (const auto& path : testing::corpus_meshes()) {
     SCOPED_TRACE(path.filename().string());
     TriangleMesh mesh = read(path);
@@ -162,6 +164,7 @@ TEST(MeshCorpus, RepairIsSafeTruthfulAndIdempotent) {
 // leave intersecting, what it keeps has fewer pairs, what it fails on is returned as the earlier
 // steps made it, its summary agrees with a fresh check, and a second run finds nothing to do.
 TEST(MeshCorpus, ResolvingSelfIntersectionsIsSafeTruthfulAndIdempotent) {
+  HC_SKIP_WHEN_SANITIZED("~2 min: the whole corpus");
   MeshRepairOptions resolve;
   resolve.resolve_self_intersections = true;
   for (const auto& path : testing::corpus_meshes()) {

@@ -17,6 +17,7 @@
 
 #include "cli_run.h"
 #include "test_data.h"
+#include "sanitizer.h"
 
 namespace hc::scene {
 namespace {
@@ -309,6 +310,7 @@ TEST(SimulateCli, NonsenseIsRefusedNamingTheRealProblem) {
 }
 
 TEST(ValidateFemCli, PrintsEveryCaseAndFailsWhenACaseIsOutOfTolerance) {
+  HC_SKIP_WHEN_SANITIZED("~1 min: every validation case");
   // Level 1 is coarse: the patch tests pass, the cantilever (linear tets lock in bending, ~50 %
   // low) does not, so the command must exit 1 and say which case failed.
   const CliRun r = run("validate fem --level 1 --json");

@@ -15,6 +15,7 @@
 #include "rig_daemon/recording/mcap_writer.h"
 #include "test_data.h"
 #include "track_support.h"
+#include "sanitizer.h"
 
 namespace hc::tracking {
 namespace {
@@ -82,6 +83,7 @@ Status colour_copy(const std::filesystem::path& in, const std::filesystem::path&
 class SimulatedPress : public ::testing::Test {
  protected:
   static void SetUpTestSuite() {
+    if (testing::kSanitized) return;  // every test of the suite skips (HC_SKIP_WHEN_SANITIZED)
     dir_ = new ScratchDir();
     rig_yaml_ = new std::string(testing::hires_rig_yaml());
     Result<std::filesystem::path> session =
@@ -131,6 +133,7 @@ std::filesystem::path* SimulatedPress::session_ = nullptr;
 calib::RigCalibration* SimulatedPress::calibration_ = nullptr;
 
 TEST_F(SimulatedPress, MarkersWithinATenthOfAMillimetreOfTheTruth) {
+  HC_SKIP_WHEN_SANITIZED("~3 min per test: a 7-camera session recorded and tracked");
   ASSERT_FALSE(session_->empty());
   ASSERT_EQ(calibration_->cameras.size(), 7u);
   const SessionDetections* det = &detections();
@@ -224,6 +227,7 @@ TEST_F(SimulatedPress, MarkersWithinATenthOfAMillimetreOfTheTruth) {
 // camera's detections in the later steps (as if the probe covered them); each is filled within
 // 0.5 mm of the truth.
 TEST_F(SimulatedPress, OccludedMarkersAreFilledWithinHalfAMillimetre) {
+  HC_SKIP_WHEN_SANITIZED("~3 min per test: a 7-camera session recorded and tracked");
   ASSERT_FALSE(session_->empty());
   std::optional<SessionDetections> det = detections();  // a copy, cut to 6 steps
   det->steps.resize(6);
@@ -279,6 +283,7 @@ TEST_F(SimulatedPress, OccludedMarkersAreFilledWithinHalfAMillimetre) {
 // invisible node of the 3 x 3 block around the axis is filled within 0.5 mm of the truth in every
 // step (the bar), and so is every filled tracked marker (the summary's statistics).
 TEST_F(SimulatedPress, ProbeHiddenMarkersAreFilledWithinHalfAMillimetreOverTheWholePress) {
+  HC_SKIP_WHEN_SANITIZED("~3 min per test: a 7-camera session recorded and tracked");
   ASSERT_FALSE(session_->empty());
   const SessionDetections& det = detections();
   ASSERT_EQ(det.steps.size(), 30u);
@@ -320,6 +325,7 @@ TEST_F(SimulatedPress, ProbeHiddenMarkersAreFilledWithinHalfAMillimetreOverTheWh
 // the same 0.1 mm of the truth as the blob detector, the shaft markers (orange too) still give the
 // probe. Bad --markers / --shaft-markers values and a colour detector on mono8 frames: exit 2.
 TEST_F(SimulatedPress, CliTracksColouredDots) {
+  HC_SKIP_WHEN_SANITIZED("~3 min per test: a 7-camera session recorded and tracked");
   ASSERT_FALSE(session_->empty());
   const SessionDetections& det = detections();
   ASSERT_GE(det.steps.size(), 3u);
@@ -368,6 +374,7 @@ TEST_F(SimulatedPress, CliTracksColouredDots) {
 // Steps where fewer than two shaft markers are seen fall back to the arm's reported pose, and the
 // summary says so; without shaft geometry (or with the option off) every step uses the arm.
 TEST_F(SimulatedPress, ProbePoseFallsBackToTheArmPose) {
+  HC_SKIP_WHEN_SANITIZED("~3 min per test: a 7-camera session recorded and tracked");
   ASSERT_FALSE(session_->empty());
   SessionDetections det = detections();
   det.steps.resize(6);
@@ -446,6 +453,7 @@ TEST(ProbeOfRigConfig, ReadsTheWorldSectionAndTheSimulatorsDefaults) {
 }
 
 TEST_F(SimulatedPress, MismatchedCalibrationIsAClearError) {
+  HC_SKIP_WHEN_SANITIZED("~3 min per test: a 7-camera session recorded and tracked");
   ASSERT_FALSE(session_->empty());
   calib::RigCalibration renamed = *calibration_;
   renamed.cameras[2].name = "camX";
@@ -469,6 +477,7 @@ TEST_F(SimulatedPress, MismatchedCalibrationIsAClearError) {
 // `hardcopy track` on the same session: exit 0, the --json contract (with the truth fields a
 // simulated session allows), a samples file the fitter's reader accepts.
 TEST_F(SimulatedPress, CliWritesSamplesAndPrintsTheJsonContract) {
+  HC_SKIP_WHEN_SANITIZED("~3 min per test: a 7-camera session recorded and tracked");
   ASSERT_FALSE(session_->empty());
   const std::filesystem::path calib = dir_->path() / "calib.yml";
   ASSERT_TRUE(calib::write_rig_calibration(calib, *calibration_).ok());

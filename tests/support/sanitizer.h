@@ -1,0 +1,33 @@
+// Tests that run only in the Release stage of scripts/test, not in the sanitizer stage.
+//
+// The sanitizer stage (clang, ASan + UBSan) runs every test again, 10-30x slower. A few end-to-end
+// tests (a simulated capture tracked over 7 cameras, the thesis's noise study, corpus sweeps) take
+// minutes each there and would push CI past its time limit, while the code they exercise is run
+// under the sanitizers by the smaller tests and fuzz targets of the same part. Those tests call
+// HC_SKIP_WHEN_SANITIZED with the reason; the Release stage runs them in full.
+#pragma once
+
+#include <gtest/gtest.h>
+
+#if defined(__SANITIZE_ADDRESS__)
+#define HC_TEST_SANITIZED 1
+#elif defined(__has_feature)
+#if __has_feature(address_sanitizer)
+#define HC_TEST_SANITIZED 1
+#endif
+#endif
+
+namespace hc::testing {
+#ifdef HC_TEST_SANITIZED
+inline constexpr bool kSanitized = true;
+#else
+inline constexpr bool kSanitized = false;
+#endif
+}  // namespace hc::testing
+
+#define HC_SKIP_WHEN_SANITIZED(why)                                                   \
+  do {                                                                               \
+    if (::hc::testing::kSanitized)                                                   \
+      GTEST_SKIP() << "run in the Release stage only (sanitizers make it " << (why) \
+                   << "; see tests/support/sanitizer.h)";                            \
+  } while (false)
