@@ -6,7 +6,7 @@
 #include <cmath>
 #include <numbers>
 
-#include "asan_skip.h"
+#include "sanitizer.h"
 #include "fabrication/abstraction/abstraction.h"
 #include "fabrication/abstraction/fidelity.h"
 #include "fabrication/abstraction/operations.h"
@@ -64,7 +64,7 @@ TEST(PowerCrust3d, CubeKeepsItsCornersAndVolume) {
 }
 
 TEST(Offset3d, SphereRadiusChangesByTheDistance) {
-  SKIP_UNDER_ASAN();
+  HC_SKIP_WHEN_SANITIZED("3-D power crusts about ten times slower");
   // Icosphere, 4 subdivisions: vertices on the unit sphere, faces at most 0.0012 inside it.
   const TriangleMesh sphere = icosphere({0, 0, 0}, 1.0, 4);
   const double r_min = 0.01;
@@ -83,7 +83,7 @@ TEST(Offset3d, SphereRadiusChangesByTheDistance) {
 }
 
 TEST(Boolean3d, OverlappingCubesMatchTheAnalyticVolumes) {
-  SKIP_UNDER_ASAN();
+  HC_SKIP_WHEN_SANITIZED("3-D power crusts about ten times slower");
   // [0,2]^3 and [1,3]x[0.5,2.5]x[0.25,2.25] overlap in 1 x 1.5 x 1.75 = 2.625.
   const TriangleMesh a = box({0, 0, 0}, {2, 2, 2}), b = box({1, 0.5, 0.25}, {3, 2.5, 2.25});
   const std::pair<BooleanOp, double> cases[] = {{BooleanOp::kUnion, 16 - 2.625},
@@ -100,7 +100,7 @@ TEST(Boolean3d, OverlappingCubesMatchTheAnalyticVolumes) {
 }
 
 TEST(Boolean3d, OverlappingSpheresMatchTheAnalyticVolumes) {
-  SKIP_UNDER_ASAN();
+  HC_SKIP_WHEN_SANITIZED("3-D power crusts about ten times slower");
   // Unit spheres with centres 1 apart: lens pi (4r + d)(2r - d)^2 / 12 = 5 pi / 12.
   const TriangleMesh a = icosphere({0, 0, 0}, 1, 4), b = icosphere({1, 0, 0}, 1, 4);
   const double sphere = 4.0 / 3 * std::numbers::pi, lens = 5 * std::numbers::pi / 12;
@@ -117,7 +117,7 @@ TEST(Boolean3d, OverlappingSpheresMatchTheAnalyticVolumes) {
 }
 
 TEST(Boolean3d, DegenerateContactsStayValid) {
-  SKIP_UNDER_ASAN();
+  HC_SKIP_WHEN_SANITIZED("3-D power crusts about ten times slower");
   // Touching faces, a coplanar overlap and a shared edge: the configurations exact corefinement
   // must treat specially. Volumes by construction.
   const TriangleMesh a = box({0, 0, 0}, {1, 1, 1});

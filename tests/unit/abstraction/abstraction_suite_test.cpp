@@ -7,7 +7,7 @@
 
 #include <cstdio>
 
-#include "asan_skip.h"
+#include "sanitizer.h"
 #include "common/mesh_io.h"
 #include "fabrication/abstraction/abstraction.h"
 #include "fabrication/abstraction/fidelity.h"
@@ -67,7 +67,7 @@ const char* kind_name(testing::IntrusionKind k) {
 }
 
 TEST(AbstractionSuite, NarrowDeepIntrusionsCloseTheRestStays) {
-  SKIP_UNDER_ASAN();
+  HC_SKIP_WHEN_SANITIZED("3-D power crusts about ten times slower");
   int wrong = 0, wrap_wrong = 0;
   for (const auto kind : {testing::IntrusionKind::kHole, testing::IntrusionKind::kSlot,
                           testing::IntrusionKind::kGroove}) {
@@ -120,7 +120,7 @@ TEST(AbstractionSuite, NarrowDeepIntrusionsCloseTheRestStays) {
 }
 
 TEST(AbstractionSuite, MengerSpongeGenusDropsByTheNarrowHoles) {
-  SKIP_UNDER_ASAN();
+  HC_SKIP_WHEN_SANITIZED("3-D power crusts about ten times slower");
   // Level 2, unit voxels: tunnels 3 wide (kept at F = 2) and 1 wide (closed). Closing every
   // narrow tunnel leaves the level-1 sponge's topology (the same sponge at 3x voxels).
   const TriangleMesh sponge = testing::menger_sponge(2, 1.0);
@@ -146,7 +146,7 @@ TEST(AbstractionSuite, MengerSpongeGenusDropsByTheNarrowHoles) {
 }
 
 TEST(AbstractionSuite, EveryCorpusMeshGivesAPrintableAbstraction) {
-  SKIP_UNDER_ASAN();
+  HC_SKIP_WHEN_SANITIZED("3-D power crusts about ten times slower");
   for (const auto& path : testing::corpus_meshes()) {
     auto mesh = read_mesh(path);
     ASSERT_TRUE(mesh.ok()) << path;
@@ -175,7 +175,7 @@ TEST(AbstractionSuite, EveryCorpusMeshGivesAPrintableAbstraction) {
 }
 
 TEST(AbstractionSuite, BooleansAgreeWithCorefinementOnTheCorpus) {
-  SKIP_UNDER_ASAN();
+  HC_SKIP_WHEN_SANITIZED("3-D power crusts about ten times slower");
   // Each printable corpus mesh united with, cut by and intersected with a copy of itself moved by
   // a fifth of its bounding box: volumes against CGAL's exact corefinement of the same inputs.
   for (const auto& path : testing::corpus_meshes()) {

@@ -11,18 +11,13 @@
 
 #include "fabrication/articulation/skinned_io.h"
 #include "synthetic_skinned.h"
+#include "sanitizer.h"
 
 namespace hc::articulation {
 namespace {
 
 constexpr double kDeg = std::numbers::pi / 180;
 constexpr double kMm = 1e-3;
-
-#if defined(__has_feature)
-#if __has_feature(address_sanitizer)
-#define HC_UNDER_ASAN 1
-#endif
-#endif
 
 // A 16 mm thick, 90 mm long arm of two bones; the elbow at 45 mm.
 SkinnedCharacter arm() {
@@ -59,10 +54,7 @@ void expect_valid(const ArticulateResult& r, double clearance) {
 }
 
 TEST(Articulate, SyntheticArmAnimatedAboutAnAxisBecomesAHingeWithThatAxis) {
-#ifdef HC_UNDER_ASAN
-  GTEST_SKIP() << "CGAL's exact booleans take minutes under AddressSanitizer; the Release stage "
-                  "runs this test";
-#endif
+  HC_SKIP_WHEN_SANITIZED("CGAL's exact booleans take minutes");
   SkinnedCharacter c = arm();
   const Eigen::Vector3d axis = Eigen::Vector3d(1, 0, 0.3).normalized();
   c.clips.push_back(testing::rotation_clip(c, 1, axis, Eigen::Vector3d(0, 0.045, 0), 15 * kDeg,
@@ -83,10 +75,7 @@ TEST(Articulate, SyntheticArmAnimatedAboutAnAxisBecomesAHingeWithThatAxis) {
 }
 
 TEST(Articulate, SyntheticArmWithoutClipsGetsADefaultBall) {
-#ifdef HC_UNDER_ASAN
-  GTEST_SKIP() << "CGAL's exact booleans take minutes under AddressSanitizer; the Release stage "
-                  "runs this test";
-#endif
+  HC_SKIP_WHEN_SANITIZED("CGAL's exact booleans take minutes");
   const SkinnedCharacter c = arm();
   ArticulateOptions o;
   Result<ArticulateResult> r = articulate(c, o);
@@ -103,10 +92,7 @@ TEST(Articulate, SyntheticArmWithoutClipsGetsADefaultBall) {
 }
 
 TEST(Articulate, UserOverridesTurnTheJointIntoAHinge) {
-#ifdef HC_UNDER_ASAN
-  GTEST_SKIP() << "CGAL's exact booleans take minutes under AddressSanitizer; the Release stage "
-                  "runs this test";
-#endif
+  HC_SKIP_WHEN_SANITIZED("CGAL's exact booleans take minutes");
   const SkinnedCharacter c = arm();
   ArticulateOptions o;
   Result<JointOverrides> u = parse_joint_overrides(
@@ -146,10 +132,7 @@ TEST(Articulate, OverridesAndProfilesRejectBadYamlWithFileAndLine) {
 }
 
 TEST(Articulate, RiggedSimpleGivesTwoPartsOrAClearReason) {
-#ifdef HC_UNDER_ASAN
-  GTEST_SKIP() << "CGAL's exact booleans take minutes under AddressSanitizer; the Release stage "
-                  "runs this test";
-#endif
+  HC_SKIP_WHEN_SANITIZED("CGAL's exact booleans take minutes");
   SkinnedReadOptions read;
   read.target_height_m = 0.08;
   Result<SkinnedCharacter> c =

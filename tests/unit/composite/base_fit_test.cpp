@@ -10,7 +10,7 @@
 #include "../../../fabrication/composite/src/fit_example.h"
 #include "composite_test_util.h"
 #include "fabrication/composite/base_fit.h"
-#include "skip_sanitizer.h"
+#include "sanitizer.h"
 
 namespace hc::composite {
 namespace {
@@ -51,7 +51,7 @@ const BaseMaterial& fitted_foam(BaseFitSummary* summary = nullptr) {
 }
 
 TEST(BaseFit, IsotropicFoamWellUnderTheThesisTable) {
-  HC_SKIP_UNDER_SANITIZER("a base-material fit (~10 s in Release)");
+  HC_SKIP_WHEN_SANITIZED("a base-material fit (~10 s in Release)");
   BaseFitSummary sum;
   fitted_foam(&sum);
   print_levels("isotropic foam", sum.levels);
@@ -66,7 +66,7 @@ TEST(BaseFit, IsotropicFoamWellUnderTheThesisTable) {
 
 // Sec. 5.2: the base material predicts thinner and thicker blocks of the same material.
 TEST(BaseFit, PredictsThinnerAndThickerBlocks) {
-  HC_SKIP_UNDER_SANITIZER("a base-material fit and two reference blocks (~20 s in Release)");
+  HC_SKIP_WHEN_SANITIZED("a base-material fit and two reference blocks (~20 s in Release)");
   const BaseMaterial& m = fitted_foam();
   for (const double height : {0.015, 0.035}) {
     const material::Samples s =
@@ -80,7 +80,7 @@ TEST(BaseFit, PredictsThinnerAndThickerBlocks) {
 }
 
 TEST(BaseFit, TransverseModelOnFibreReference) {
-  HC_SKIP_UNDER_SANITIZER("two base-material fits (~30 s in Release)");
+  HC_SKIP_WHEN_SANITIZED("two base-material fits (~30 s in Release)");
   // Tubes along z: the reference is stiffer along the axis (E_f adds to C33).
   const material::Samples s =
       reference_samples(block(6, 5, 3, 0.025, 0.04), neo_hookean(200e3, 0.3, 4.0, 600e3),
@@ -106,7 +106,7 @@ TEST(BaseFit, TransverseModelOnFibreReference) {
 // Sec. 5.4: with only normal forces measured (the tangential parts of the contact forces lost),
 // recovering them by holding the probed nodes at their measured positions lowers the error.
 TEST(BaseFit, RecoveringTangentialForcesLowersTheError) {
-  HC_SKIP_UNDER_SANITIZER("two base-material fits (~20 s in Release)");
+  HC_SKIP_WHEN_SANITIZED("two base-material fits (~20 s in Release)");
   material::Samples s = reference_samples(block(6, 6, 3), kFoam, six_examples());
   for (material::Example& ex : s.examples) {
     // What a force sensor on the probe reports: the total force along the probe, spread over the

@@ -8,7 +8,7 @@
 #include <string>
 
 #include "cli_run.h"
-#include "skip_sanitizer.h"
+#include "sanitizer.h"
 #include "test_data.h"
 
 namespace hc::composite {
@@ -31,7 +31,7 @@ void write_scene(const fs::path& file, double youngs_pa, double height_m = 0.02)
 }
 
 TEST(CompositeCli, FitBaseDesignSimulate) {
-  HC_SKIP_UNDER_SANITIZER("two fits and a design through the CLI (~20 s in Release)");
+  HC_SKIP_WHEN_SANITIZED("two fits and a design through the CLI (~20 s in Release)");
   hc::testing::ScratchDir dir;
   const std::string d = dir.path().string();
   for (const auto& [name, e] : {std::pair{"soft", 60e3}, std::pair{"hard", 400e3}}) {

@@ -7,7 +7,7 @@
 
 #include "design_fixture.h"
 #include "fabrication/composite/design.h"
-#include "skip_sanitizer.h"
+#include "sanitizer.h"
 
 namespace hc::composite {
 namespace {
@@ -16,7 +16,7 @@ namespace {
 // certificate; the exact mode must find each design and certify it (its simulated error is zero
 // to the solver's tolerance, so no design can be better).
 TEST(CompositeDesign, ExactRecoversTwentyRandomDesignsWithCertificates) {
-  HC_SKIP_UNDER_SANITIZER("20 exact and 20 B&B searches (~60 s in Release)");
+  HC_SKIP_WHEN_SANITIZED("20 exact and 20 B&B searches (~60 s in Release)");
   const TetMesh mesh = testing::block(6, 6, 5);
   const material::Samples loads = testing::load_cases(mesh);
   const std::vector<BaseMaterial> library = testing::nine_base_materials();
@@ -65,7 +65,7 @@ TEST(CompositeDesign, ExactRecoversTwentyRandomDesignsWithCertificates) {
 
 // Voxels (Sec. 5.9.2): 2 x 2 x 1 cells (6,561 designs) with the same search and certificate.
 TEST(CompositeDesign, VoxelDesignRecovered) {
-  HC_SKIP_UNDER_SANITIZER("a voxel design search (~15 s in Release)");
+  HC_SKIP_WHEN_SANITIZED("a voxel design search (~15 s in Release)");
   const TetMesh mesh = testing::block(6, 6, 3);
   const material::Samples loads = testing::load_cases(mesh);
   const std::vector<BaseMaterial> library = testing::nine_base_materials();
@@ -90,7 +90,7 @@ TEST(CompositeDesign, VoxelDesignRecovered) {
 // Thickness as a design variable: 3 layers over 6 sublayers (thicknesses 1..4 sublayers), the
 // target a 2 + 1 + 3 sublayer stack.
 TEST(CompositeDesign, ThicknessIsADesignVariable) {
-  HC_SKIP_UNDER_SANITIZER("a thickness design search (~15 s in Release)");
+  HC_SKIP_WHEN_SANITIZED("a thickness design search (~15 s in Release)");
   const TetMesh mesh = testing::block(6, 6, 6);
   const material::Samples loads = testing::load_cases(mesh);
   std::vector<BaseMaterial> library = testing::nine_base_materials();

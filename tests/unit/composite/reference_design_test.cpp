@@ -10,7 +10,7 @@
 #include "fabrication/composite/base_fit.h"
 #include "fabrication/composite/design.h"
 #include "processing/hyperelastic/neo_hookean.h"
-#include "skip_sanitizer.h"
+#include "sanitizer.h"
 
 namespace hc::composite {
 namespace {
@@ -72,7 +72,7 @@ material::Samples reference_target(const material::Samples& loads, const CellGri
 // references; the thesis measured 1.98 / 2.16 mm average at 10 / 20 N on its printed two-layer
 // block of the same 2.5 cm height.
 TEST(ReferenceComposite, StackingPredictsTwoLayerBlocks) {
-  HC_SKIP_UNDER_SANITIZER("two base-material fits (~25 s in Release)");
+  HC_SKIP_WHEN_SANITIZED("two base-material fits (~25 s in Release)");
   const hyperelastic::NeoHookeanMaterial soft = neo_hookean(150e3, 0.3, 6.0);
   const hyperelastic::NeoHookeanMaterial stiff = neo_hookean(600e3, 0.35, 2.0);
   const BaseMaterial a = fit_reference(soft), b = fit_reference(stiff);
@@ -102,7 +102,7 @@ TEST(ReferenceComposite, StackingPredictsTwoLayerBlocks) {
 // reference materials, designed with the nine base materials fitted to them. The thesis's search
 // averaged 0.067 mm RMS on targets simulated from its own base models.
 TEST(ReferenceComposite, DesignMatchesReferenceTargets) {
-  HC_SKIP_UNDER_SANITIZER("nine base-material fits and 20 design searches (~3 min in Release)");
+  HC_SKIP_WHEN_SANITIZED("nine base-material fits and 20 design searches (~3 min in Release)");
   const std::vector<hyperelastic::NeoHookeanMaterial> refs = nine_references();
   std::vector<BaseMaterial> library;
   for (const auto& r : refs) library.push_back(fit_reference(r));

@@ -8,23 +8,15 @@
 
 #include "cli_run.h"
 #include "live_support.h"
+#include "sanitizer.h"
 
 namespace hc::rig {
 namespace {
 
 using testing::LiveRig;
 
-#if defined(__has_feature)
-#if __has_feature(address_sanitizer)
-#define HC_LIVE_PAGE_SANITIZED 1
-#endif
-#endif
-
 TEST(LivePageBrowser, ShowsTheCaptureAndObeysTheToken) {
-#ifdef HC_LIVE_PAGE_SANITIZED
-  GTEST_SKIP() << "a real-time capture plus a browser takes minutes under AddressSanitizer; the "
-                  "Release stage runs this test";
-#endif
+  HC_SKIP_WHEN_SANITIZED("a real-time capture plus a browser takes minutes");
   const std::filesystem::path browser_dir = HARDCOPY_BROWSER_DIR;
   const std::filesystem::path chromium = std::getenv("CHROMIUM") ? std::getenv("CHROMIUM") : "/usr/bin/chromium";
   if (!std::filesystem::exists(chromium)) GTEST_SKIP() << "no chromium at " << chromium;

@@ -8,21 +8,13 @@
 
 #include "cli_run.h"
 #include "test_data.h"
+#include "sanitizer.h"
 
 namespace hc::testing {
 namespace {
 
-#if defined(__has_feature)
-#if __has_feature(address_sanitizer)
-#define HC_UNDER_ASAN 1
-#endif
-#endif
-
 TEST(ArticulateCli, RiggedSimpleGivesTwoPartsAndTheJsonContract) {
-#ifdef HC_UNDER_ASAN
-  GTEST_SKIP() << "CGAL's exact booleans take minutes under AddressSanitizer; the Release stage "
-                  "runs this test";
-#endif
+  HC_SKIP_WHEN_SANITIZED("CGAL's exact booleans take minutes");
   ScratchDir dir;
   const auto out = dir / "simple.3mf";
   const auto stl = dir / "simple.stl";
