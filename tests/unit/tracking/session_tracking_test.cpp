@@ -83,7 +83,7 @@ Status colour_copy(const std::filesystem::path& in, const std::filesystem::path&
 class SimulatedPress : public ::testing::Test {
  protected:
   static void SetUpTestSuite() {
-    if (testing::kSanitized) return;  // every test of the suite skips (HC_SKIP_WHEN_SANITIZED)
+    if (::hc::testing::kSanitized) return;  // every test of the suite skips (HC_SKIP_WHEN_SANITIZED)
     dir_ = new ScratchDir();
     rig_yaml_ = new std::string(testing::hires_rig_yaml());
     Result<std::filesystem::path> session =
