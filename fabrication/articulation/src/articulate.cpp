@@ -15,9 +15,6 @@ namespace {
 constexpr double kMm = 1e-3;
 constexpr double kDeg = std::numbers::pi / 180;
 constexpr double kMaxCone = 80 * kDeg;
-// Largest angle between a transition's normal and the direction from its centre to the child
-// link's vertices for the transition to count as crossing the link.
-constexpr double kMaxTiltFromChild = 35 * kDeg;
 const Eigen::Vector3d kUp = Eigen::Vector3d::UnitY();
 
 class Stopwatch {
@@ -144,23 +141,9 @@ Result<ArticulateResult> articulate(const SkinnedCharacter& c, const ArticulateO
                       find_transitions(F.mesh, F.weights, parents, depths, o.transitions));
   HC_ASSIGN_OR_RETURN(const geometry::MeshDistance distance, geometry::MeshDistance::build(F.mesh));
   const auto depth = [&distance](const Eigen::Vector3d& p) { return -distance.signed_distance(p); };
-  // Where each link's vertices lie on average, to check that a transition's plane crosses the
-  // child link rather than running along it.
-  const std::vector<int> labels = segment_by_max_weight(F.weights);
-  std::vector<Eigen::Vector3d> link_centroid(c.bones.size(), Eigen::Vector3d::Zero());
-  std::vector<int> link_count(c.bones.size(), 0);
-  for (std::size_t v = 0; v < labels.size(); ++v) {
-    link_centroid[static_cast<std::size_t>(labels[v])] += F.mesh.vertices.row(static_cast<Eigen::Index>(v)).transpose();
-    ++link_count[static_cast<std::size_t>(labels[v])];
-  }
-  for (std::size_t l = 0; l < link_centroid.size(); ++l)
-    if (link_count[l] > 0) link_centroid[l] /= link_count[l];
   std::vector<LinkContact> contacts;
   for (const Transition& t : transitions) {
-    // A contact of a few edges (a coarse mesh's triangle spanning three links) is not a
-    // connection a joint's cut has to get past: the cut of the links' real transition severs it.
-    if (static_cast<int>(t.points.size()) >= o.transitions.min_points)
-      contacts.push_back({t.parent_link, t.child_link});
+    contacts.push_back({t.parent_link, t.child_link});
     Joint j;
     j.parent_link = t.parent_link;
     j.child_link = t.child_link;
@@ -178,15 +161,6 @@ Result<ArticulateResult> articulate(const SkinnedCharacter& c, const ArticulateO
       j.reason = fmt::format("degenerate transition: lambda3/lambda2 = {:.2f} > f = {:.2f} ({} "
                              "points): the links are not joined around a loop",
                              t.ratio, o.transitions.degenerate_ratio, t.points.size());
-    } else if (const Eigen::Vector3d to_child =
-                   link_centroid[static_cast<std::size_t>(t.child_link)] - t.centre;
-               to_child.dot(t.normal) < std::cos(kMaxTiltFromChild) * to_child.norm()) {
-      // A coarse transition (a few edges of a low-poly mesh) can tilt its PCA plane until it
-      // runs along the limb; its cuts would then split the limb lengthwise.
-      j.excluded = true;
-      j.reason = fmt::format("the transition plane does not cross the child link (its normal is "
-                             "{:.0f} deg from the direction to the link)",
-                             std::acos(std::clamp(to_child.normalized().dot(t.normal), -1.0, 1.0)) / kDeg);
     } else {
       const MedialCentre m =
           medial_centre(t.centre, t.normal, 1.5 * std::sqrt(2 * t.lambdas(2)), depth);
@@ -246,6 +220,7 @@ Result<ArticulateResult> articulate(const SkinnedCharacter& c, const ArticulateO
   exclude_unseparable_joints(contacts, static_cast<int>(c.bones.size()), &out.joints);
   watch.lap("collisions");
 
+  const std::vector<int> labels = segment_by_max_weight(F.weights);
   for (int attempt = 0; attempt < 3; ++attempt) {
     out.carving = CarveSummary{};
     HC_ASSIGN_OR_RETURN(out.parts, carve_parts(F.mesh, labels, names, depths, out.joints, hulls,

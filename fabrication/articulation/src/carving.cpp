@@ -9,7 +9,6 @@
 #include <numeric>
 
 #include "geometry/csg_sequence.h"
-#include "common/mesh_io.h"
 #include "geometry/mesh_distance.h"
 #include "geometry/mesh_proximity.h"
 
@@ -135,8 +134,6 @@ Result<std::vector<CarvedPart>> carve_parts(const TriangleMesh& fabrication,
                                             ProgressReporter* progress, CarveSummary* summary) {
   const auto start = std::chrono::steady_clock::now();
   std::vector<geometry::CsgStep> steps;
-  if (getenv("HC_DUMP")) for (std::size_t i = 0; i < joints.size(); ++i) if (!joints[i].excluded) { (void)write_mesh(fmt::format("/tmp/asx/hull_{}.ply", i), hulls[i].hull); } 
-  if (getenv("HC_DUMP")) (void)write_mesh("/tmp/asx/F.ply", fabrication);
   for (std::size_t i = 0; i < joints.size(); ++i)
     if (!joints[i].excluded)
       steps.push_back({geometry::BooleanOperation::kDifference, hulls[i].hull,
@@ -157,25 +154,19 @@ Result<std::vector<CarvedPart>> carve_parts(const TriangleMesh& fabrication,
   std::vector<CarvedPart> parts;
   std::vector<std::unique_ptr<geometry::MeshProximity>> inside;
   for (TriangleMesh& piece : pieces) {
-    // Votes weighted by area, so that a hull's finely faceted cut does not outvote the
-    // character's own surface.
-    std::map<int, double> votes;
-    for (Eigen::Index f = 0; f < piece.num_triangles(); ++f) {
-      const Eigen::Vector3d a = piece.vertices.row(piece.triangles(f, 0));
-      const Eigen::Vector3d b = piece.vertices.row(piece.triangles(f, 1));
-      const Eigen::Vector3d cc = piece.vertices.row(piece.triangles(f, 2));
+    std::map<int, int> votes;
+    for (Eigen::Index v = 0; v < piece.num_vertices(); ++v) {
       Eigen::Index t = -1;
-      const Eigen::Vector3d p = f_tree.closest_point((a + b + cc) / 3.0, &t);
+      const Eigen::Vector3d p = f_tree.closest_point(piece.vertices.row(v).transpose(), &t);
       int best = fabrication.triangles(t, 0);
       for (int k = 1; k < 3; ++k)
         if ((fabrication.vertices.row(fabrication.triangles(t, k)).transpose() - p).norm() <
             (fabrication.vertices.row(best).transpose() - p).norm())
           best = fabrication.triangles(t, k);
-      votes[vertex_link[static_cast<std::size_t>(best)]] += 0.5 * (b - a).cross(cc - a).norm();
+      ++votes[vertex_link[static_cast<std::size_t>(best)]];
     }
     CarvedPart part;
-    int top = -1;
-    double top_votes = 0;
+    int top = -1, top_votes = 0;
     for (const auto& [link, count] : votes) {
       part.links.push_back(link);
       if (count > top_votes) top = link, top_votes = count;

@@ -111,15 +111,10 @@ Status Resolver::run() {
   initial_r_.assign(joints_.size(), 0.0);
   for (std::size_t i = 0; i < joints_.size(); ++i) {
     if (joints_[i].excluded) continue;
-    // A hull that cannot be built (its cut would run along the limb, or rounding folded it)
-    // makes no joint; the others go on.
-    if (Status s = refresh(static_cast<int>(i)); !s.ok()) {
-      exclude(static_cast<int>(i), "no hull: " + s.message());
-      continue;
-    }
     active.push_back(static_cast<int>(i));
     initial_area_[i] = joints_[i].min_area;
     initial_r_[i] = joints_[i].r_max;
+    HC_RETURN_IF_ERROR(refresh(static_cast<int>(i)));
   }
   const std::vector<Edge> initial = edges_among(active);
   s_.initial_collisions = static_cast<int>(initial.size());
@@ -142,8 +137,8 @@ Status Resolver::run() {
       ++s_.shrink_steps;
       task.advance();
       bool fail = !J(strong).feasible() || J(strong).min_area < o_.min_area_m2;
-      if (!fail) fail = !refresh(strong).ok();
       if (!fail) {
+        HC_RETURN_IF_ERROR(refresh(strong));
         for (std::size_t k = 0; k < joints_.size() && !fail; ++k) {
           const int other = static_cast<int>(k);
           if (J(other).excluded || inside.count(other) || other == strong) continue;
@@ -165,7 +160,7 @@ Status Resolver::run() {
         for (int m : reset) {
           J(m).r_max = initial_r_[static_cast<std::size_t>(m)];
           redesign_(&J(m));
-          HC_RETURN_IF_ERROR(refresh(m));  // built before at this radius
+          HC_RETURN_IF_ERROR(refresh(m));
         }
         for (auto& comp : components(reset, edges_among(reset))) stack.push_back({comp, g.origin});
         break;

@@ -17,14 +17,6 @@ constexpr double kPi = std::numbers::pi;
 // Fraction of a facet step the neck cone's generatrices are turned by: an irrational amount, so
 // they do not lie in the planes of a symmetric character's edges (a tube's edges through its axis
 // share every rational azimuth), which would leave slivers that rounding folds.
-// The cut surfaces' caps are flat between the rays that place them (7.5 degrees apart with 48
-// segments, 8 stations along a hinge): across a convex edge of the character (a box's corner)
-// the flat cap can dip inside the surface by up to ~sin(7.5 deg) of the distance and cut off a
-// sliver. Each cap vertex is pushed out by this fraction of its distance beyond the margin.
-constexpr double kChordAllowance = 0.15;
-// Longest a ray of a cut surface may stay inside the character, in inscribed radii (a limb of
-// elliptical section 3:1 needs ~3).
-constexpr double kMaxCutReach = 6.0;
 constexpr double kNeckPhase = 0.3819660112501051;  // 2 - golden ratio
 
 using Depth = std::function<double(const Eigen::Vector3d&)>;
@@ -43,18 +35,6 @@ TriangleMesh small_sphere(double radius, int segments, Facet facet, const Eigen:
   for (Eigen::Index v = 0; v < m.num_vertices(); ++v)
     m.vertices.row(v) = (kTurn * m.vertices.row(v).transpose() + centre).transpose();
   return m;
-}
-
-// A cut surface must cross the limb, reaching its surface within a few inscribed radii of the
-// joint. A ray of the cut that stays inside much longer runs along the limb (a transition plane
-// tilted along it, as a coarse mesh's few transition edges can give) and would split the limb
-// lengthwise.
-Status check_cut_length(double longest, double r_max) {
-  if (longest <= kMaxCutReach * r_max) return {};
-  return failed_precondition(fmt::format(
-      "a cut surface would run {:.1f} mm inside the character ({:.0f} x r_max): the joint's plane "
-      "does not cross its limb",
-      longest * 1e3, longest / r_max));
 }
 
 // Evaluates the hull's CSG in the joint's frame and moves it to the world.
@@ -80,15 +60,12 @@ Result<JointHull> ball_hull(const Joint& j, const HullOptions& o, const Depth& d
   const LocalFrame frame = j.frame();
   const double d = o.clearance_m, m = o.reach_margin_m;
   JointHull out;
-  double longest = 0.0;  // longest ray of the cut inside the mesh
   // Reach of a direction given in the joint frame.
   const auto reach = [&](double extra) {
     return [&, extra](const Eigen::Vector3d& local_dir) {
       const double t = exit_distance(depth, j.centre, frame.axes * local_dir);
-      const double r = std::max(t, s.r) + extra + kChordAllowance * t;
-      out.reach_m = std::max(out.reach_m, r);
-      longest = std::max(longest, t);
-      return r;
+      out.reach_m = std::max(out.reach_m, t + extra);
+      return std::max(t, s.r) + extra;
     };
   };
   const auto psi = [&](double theta) { return s.alpha + j.cone.at(theta) + s.delta; };
@@ -96,14 +73,12 @@ Result<JointHull> ball_hull(const Joint& j, const HullOptions& o, const Depth& d
   std::vector<CsgStep> steps;
   // The socket's cut: the shell between half the neck's angle and psi (the part inside the neck
   // goes with the neck), its generatrices half a step away from the neck cone's so that no
-  // vertex of one lies on an edge of the other. The neck cone (the child's side) then reaches
-  // past the whole shell, so the shell's inner part goes with it wherever the caps lie.
+  // vertex of one lies on an edge of the other.
   steps.push_back(step(BooleanOperation::kUnion,
                        cone_sector_mesh(psi, reach(m), o.segments, Facet::kCircumscribed,
                                         s.alpha / 2, s.r / 2,
                                         (kNeckPhase + 0.5) * 2 * kPi / o.segments),
                        "socket cone"));
-  HC_RETURN_IF_ERROR(check_cut_length(longest, j.r_max));
   // Friction bumps on the ball's equator, three around n; dimples of r_b + d in the socket, when
   // they fit inside the inscribed sphere.
   std::vector<Eigen::Vector3d> bumps_local;
@@ -122,12 +97,8 @@ Result<JointHull> ball_hull(const Joint& j, const HullOptions& o, const Depth& d
   steps.push_back(step(BooleanOperation::kDifference,
                        sphere_mesh(s.ball_radius, o.segments, Facet::kInscribed), "ball"));
   steps.push_back(step(BooleanOperation::kDifference,
-                       cone_sector_mesh(alpha,
-                                        [far = out.reach_m + 2 * m](const Eigen::Vector3d&) {
-                                          return far;
-                                        },
-                                        o.segments, Facet::kInscribed, 0.0, 0.0,
-                                        kNeckPhase * 2 * kPi / o.segments),
+                       cone_sector_mesh(alpha, reach(2 * m), o.segments, Facet::kInscribed, 0.0,
+                                        0.0, kNeckPhase * 2 * kPi / o.segments),
                        "neck cone"));
   for (const Eigen::Vector3d& c : bumps_local) {
     steps.push_back(step(BooleanOperation::kDifference,
@@ -146,7 +117,6 @@ Result<JointHull> hinge_hull(const Joint& j, const HullOptions& o, const Depth& 
   const LocalFrame frame = j.frame();
   const double d = o.clearance_m, m = o.reach_margin_m;
   JointHull out;
-  double longest = 0.0;  // longest ray of the cut inside the mesh
   const double psi_f = std::min(h.alpha + j.swing.forward + h.delta, 0.97 * kPi);
   const double psi_b = std::min(h.alpha + j.swing.backward + h.delta, 0.97 * kPi);
   // Half-extent along the axis: where rays along +-a leave the mesh, from points of the wedge.
@@ -164,10 +134,8 @@ Result<JointHull> hinge_hull(const Joint& j, const HullOptions& o, const Depth& 
       const Eigen::Vector3d q = j.centre + x * j.a;
       const Eigen::Vector3d dir = std::cos(phi) * j.n + std::sin(phi) * j.f();
       const double t = exit_distance(depth, q, dir);
-      const double r = std::max(t, h.R) + extra + kChordAllowance * t;
-      out.reach_m = std::max(out.reach_m, std::hypot(x, r));
-      longest = std::max(longest, t);
-      return r;
+      out.reach_m = std::max(out.reach_m, std::hypot(x, t + extra));
+      return std::max(t, h.R) + extra;
     };
   };
   const int stations = 8;
@@ -181,7 +149,6 @@ Result<JointHull> hinge_hull(const Joint& j, const HullOptions& o, const Depth& 
                        sector_prism_mesh(wedge_inner, reach(m), -psi_b, psi_f, -half, half,
                                          stations, o.segments, Facet::kInscribed),
                        "fork wedge"));
-  HC_RETURN_IF_ERROR(check_cut_length(longest, j.r_max));
   // Friction bumps on the knuckle's faces, behind the pin (away from the neck).
   std::vector<Eigen::Vector3d> bumps_local;
   const double rb = o.bump_radius_m;
@@ -204,17 +171,13 @@ Result<JointHull> hinge_hull(const Joint& j, const HullOptions& o, const Depth& 
                                      0.25),
                        "knuckle"));
   const double neck_alpha = 0.998 * h.alpha;
-  // The child's body wedge reaches past every cut surface, so that whatever of K+ lies inside
-  // it is removed whichever way the cuts' caps were interpolated.
-  const double body = out.reach_m + 2 * m;
   steps.push_back(step(BooleanOperation::kDifference,
                        sector_prism_mesh(0.0, h.R + d, -neck_alpha, neck_alpha, -knuckle, knuckle,
                                          o.segments, Facet::kInscribed),
                        "neck"));
   steps.push_back(step(BooleanOperation::kDifference,
-                       sector_prism_mesh(h.R + d / 2, [&](double, double) { return body; },
-                                         -h.alpha, h.alpha, -half - m, half + m, 1, o.segments,
-                                         Facet::kCircumscribed),
+                       sector_prism_mesh(h.R + d / 2, reach(2 * m), -h.alpha, h.alpha, -half - m,
+                                         half + m, stations, o.segments, Facet::kCircumscribed),
                        "child body"));
   const double hole_end = h.b / 2 - d / 2;
   steps.push_back(step(BooleanOperation::kUnion,
