@@ -1,4 +1,5 @@
-// Tests that run only in the Release stage of scripts/test, not in the sanitizer stage.
+// Tests that run only in the Release stage of scripts/test, not in the sanitizer stage, and sweeps
+// that CI runs in part.
 //
 // The sanitizer stage (clang, ASan + UBSan) runs every test again, 10-30x slower. A few end-to-end
 // tests (a simulated capture tracked over 7 cameras, the thesis's noise study, corpus sweeps) take
@@ -8,6 +9,9 @@
 #pragma once
 
 #include <gtest/gtest.h>
+
+#include <cstdlib>
+#include <cstring>
 
 #if defined(__SANITIZE_ADDRESS__)
 #define HC_TEST_SANITIZED 1
@@ -23,6 +27,14 @@ inline constexpr bool kSanitized = true;
 #else
 inline constexpr bool kSanitized = false;
 #endif
+
+// Sweeps that take many minutes (every orientation of a generated suite, the whole mesh corpus)
+// run a representative part by default, so that CI stays within its time; HARDCOPY_LONG_TESTS=1
+// runs them whole (what a change to the algorithms they check should be verified with).
+inline bool long_tests() {
+  const char* v = std::getenv("HARDCOPY_LONG_TESTS");
+  return v != nullptr && std::strcmp(v, "") != 0 && std::strcmp(v, "0") != 0;
+}
 }  // namespace hc::testing
 
 #define HC_SKIP_WHEN_SANITIZED(why)                                                   \
