@@ -76,6 +76,10 @@ class CompositeMaterial final : public fem::MaterialModel {
 Result<CompositeMaterial> make_composite(const std::vector<BaseMaterial>& library,
                                          const std::vector<int>& element_cell,
                                          const std::vector<int>& design, int num_cells);
+// The composite points into `library`: a temporary library would leave it dangling.
+Result<CompositeMaterial> make_composite(std::vector<BaseMaterial>&& library,
+                                         const std::vector<int>& element_cell,
+                                         const std::vector<int>& design, int num_cells) = delete;
 
 // Options of the quasi-static simulation of Sec. 5.3.2 under an example's nodal forces.
 struct ForwardOptions {
