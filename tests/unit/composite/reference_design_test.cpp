@@ -112,7 +112,7 @@ TEST(ReferenceComposite, DesignMatchesReferenceTargets) {
   Result<CellGrid> grid = CellGrid::equal_layers(mesh_box(mesh), 5);
   ASSERT_TRUE(grid.ok());
   // All 20 with HARDCOPY_LONG_TESTS=1; CI's default run takes the first 4 (same seed).
-  const int count = testing::long_tests() ? 20 : 4;
+  const int count = ::hc::testing::long_tests() ? 20 : 4;
   const auto designs = testing::random_designs(count, 5, 9, 77);
   const material::Samples first = reference_target(loads, *grid, refs, designs[0]);
   Result<CompositeDesigner> designer = CompositeDesigner::create(first, *grid, library);
