@@ -8,7 +8,7 @@ find_package(nlohmann_json 3.10 REQUIRED)
 find_package(CLI11 REQUIRED)
 find_package(ZLIB REQUIRED)
 find_package(TBB REQUIRED)
-# CGAL is header-only here; only the targets that need it link it (see fabrication/CMakeLists.txt).
+# CGAL is header-only here; only the targets that need it link it (see common/geometry/CMakeLists.txt).
 set(CGAL_DO_NOT_WARN_ABOUT_CMAKE_BUILD_TYPE TRUE)
 find_package(CGAL REQUIRED)
 find_package(GTest REQUIRED)

@@ -21,7 +21,7 @@
 #include <vector>
 
 #include "common/mesh_io.h"
-#include "fabrication/mesh_check.h"
+#include "fabrication/printability/mesh_check.h"
 #include "test_data.h"
 
 namespace {

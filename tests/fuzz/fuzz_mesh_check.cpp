@@ -12,8 +12,8 @@
 #include <vector>
 
 #include "common/mesh.h"
-#include "fabrication/mesh_check.h"
-#include "fabrication/mesh_repair.h"
+#include "fabrication/printability/mesh_check.h"
+#include "fabrication/printability/mesh_repair.h"
 
 namespace {
 

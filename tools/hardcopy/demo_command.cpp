@@ -13,8 +13,8 @@
 #include "command.h"
 #include "common/json.h"
 #include "common/mesh_io.h"
-#include "fabrication/mesh_check.h"
-#include "fabrication/mesh_repair.h"
+#include "fabrication/printability/mesh_check.h"
+#include "fabrication/printability/mesh_repair.h"
 
 namespace hc::cli {
 namespace {

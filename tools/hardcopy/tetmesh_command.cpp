@@ -9,7 +9,7 @@
 #include "common/json.h"
 #include "common/mesh_io.h"
 #include "common/tet_mesh_io.h"
-#include "fabrication/mesh_check.h"
+#include "fabrication/printability/mesh_check.h"
 #include "processing/meshing/tetrahedralize.h"
 
 namespace hc::cli {

@@ -1,18 +1,44 @@
-// Internal to hardcopy_fabrication: the CGAL-backed geometry behind mesh_check and mesh_repair.
-// This header names no CGAL type, so fabrication/src/*.cpp include it without parsing CGAL; the
-// implementation in cgal_mesh_ops.cpp is the only place CGAL is compiled. Every function catches
-// what CGAL throws and returns it as a Status.
+// hardcopy_geometry: the CGAL-backed mesh operations every room may use (printability checks and
+// repair today). This header names no CGAL type, so its users compile without parsing CGAL; the
+// sources of common/geometry/src/ are the only translation units of the project that include
+// CGAL. Every function catches what CGAL throws and returns it as a Status.
 #pragma once
 
 #include <cstdint>
+#include <string>
 #include <vector>
 
 #include "common/mesh.h"
 #include "common/progress.h"
 #include "common/status.h"
-#include "fabrication/mesh_repair.h"
 
-namespace hc::fabrication::cgal_ops {
+namespace hc::geometry {
+
+// One CGAL step of the self-intersection stage, in the order tried:
+//   "cap_flips"     CGAL::PMP::experimental::remove_almost_degenerate_faces on the intersecting
+//                   triangles: flips the longest edge of caps (an angle over 160 degrees), which
+//                   moves no vertex. A near-flat sliver folded over its neighbours is such a cap.
+//   "local_removal" CGAL::PMP::experimental::remove_self_intersections (genus preserved): smooths
+//                   the region around the intersections, or removes it and fills the hole.
+//   "autorefine"    CGAL::PMP::experimental::autorefine_and_remove_self_intersections, closed
+//                   meshes only: splits faces along their intersections and removes what lies
+//                   inside the solid (the union of overlapping parts).
+// A step's result is kept only if it is a valid triangle mesh, closed if its input was, with
+// fewer intersecting pairs, within the allowed deviation (one-sided for autorefine, whose result
+// must lie on its input) and, for autorefine, bounding a positive volume.
+struct SelfIntersectionStep {
+  std::string method;
+  bool kept = false;  // its result replaced the mesh
+  std::int64_t pairs_before = 0;
+  std::int64_t pairs_after = -1;  // -1: not counted (CGAL threw, or the result was invalid)
+  // Hausdorff distance between the step's result and its input, in the mesh's unit, as CGAL's
+  // bounded-error algorithm measures it: within deviation_error of the true distance (a tenth of
+  // the allowed deviation). -1: not measured.
+  double deviation = -1.0;
+  double deviation_error = 0.0;
+  double time_s = 0.0;
+  std::string note;  // why the result was not kept, or what CGAL reported
+};
 
 // For each triangle of `mesh`, 1 when its three corners are exactly collinear and 0 otherwise
 // (CGAL::collinear on Epick: a filtered predicate, exact for double input). Corners at the same
@@ -110,4 +136,4 @@ inline constexpr std::uint64_t kResolveSteps = 3;
 Status resolve_self_intersections(const ResolveOptions& options, TriangleMesh* mesh,
                                   std::vector<SelfIntersectionStep>* steps);
 
-}  // namespace hc::fabrication::cgal_ops
+}  // namespace hc::geometry

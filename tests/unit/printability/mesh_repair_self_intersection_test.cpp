@@ -12,8 +12,8 @@
 #include <vector>
 
 #include "common/mesh_io.h"
-#include "fabrication/mesh_check.h"
-#include "fabrication/mesh_repair.h"
+#include "fabrication/printability/mesh_check.h"
+#include "fabrication/printability/mesh_repair.h"
 #include "synthetic_meshes.h"
 #include "test_data.h"
 

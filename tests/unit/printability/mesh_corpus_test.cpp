@@ -9,8 +9,8 @@
 #include <string>
 
 #include "common/mesh_io.h"
-#include "fabrication/mesh_check.h"
-#include "fabrication/mesh_repair.h"
+#include "fabrication/printability/mesh_check.h"
+#include "fabrication/printability/mesh_repair.h"
 #include "test_data.h"
 
 namespace hc::fabrication {

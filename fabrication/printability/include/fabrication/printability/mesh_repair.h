@@ -11,7 +11,8 @@
 #include "common/mesh.h"
 #include "common/progress.h"
 #include "common/status.h"
-#include "fabrication/mesh_check.h"
+#include "fabrication/printability/mesh_check.h"
+#include "geometry/mesh_ops.h"
 
 namespace hc::fabrication {
 
@@ -43,31 +44,8 @@ struct MeshRepairOptions {
   std::string validate() const;
 };
 
-// One CGAL step of the self-intersection stage, in the order tried:
-//   "cap_flips"     CGAL::PMP::experimental::remove_almost_degenerate_faces on the intersecting
-//                   triangles: flips the longest edge of caps (an angle over 160 degrees), which
-//                   moves no vertex. A near-flat sliver folded over its neighbours is such a cap.
-//   "local_removal" CGAL::PMP::experimental::remove_self_intersections (genus preserved): smooths
-//                   the region around the intersections, or removes it and fills the hole.
-//   "autorefine"    CGAL::PMP::experimental::autorefine_and_remove_self_intersections, closed
-//                   meshes only: splits faces along their intersections and removes what lies
-//                   inside the solid (the union of overlapping parts).
-// A step's result is kept only if it is a valid triangle mesh, closed if its input was, with
-// fewer intersecting pairs, within the allowed deviation (one-sided for autorefine, whose result
-// must lie on its input) and, for autorefine, bounding a positive volume.
-struct SelfIntersectionStep {
-  std::string method;
-  bool kept = false;  // its result replaced the mesh
-  std::int64_t pairs_before = 0;
-  std::int64_t pairs_after = -1;  // -1: not counted (CGAL threw, or the result was invalid)
-  // Hausdorff distance between the step's result and its input, in the mesh's unit, as CGAL's
-  // bounded-error algorithm measures it: within deviation_error of the true distance (a tenth of
-  // the allowed deviation). -1: not measured.
-  double deviation = -1.0;
-  double deviation_error = 0.0;
-  double time_s = 0.0;
-  std::string note;  // why the result was not kept, or what CGAL reported
-};
+// One CGAL step of the self-intersection stage (geometry/mesh_ops.h says what each does).
+using geometry::SelfIntersectionStep;
 
 struct SelfIntersectionStage {
   // resolve_self_intersections was on and the earlier steps left intersecting pairs.

@@ -1,4 +1,4 @@
-#include "fabrication/mesh_repair.h"
+#include "fabrication/printability/mesh_repair.h"
 
 #include <fmt/format.h>
 
@@ -12,7 +12,7 @@
 #include <unordered_map>
 #include <vector>
 
-#include "cgal_mesh_ops.h"
+#include "geometry/mesh_ops.h"
 
 namespace hc::fabrication {
 namespace {
@@ -221,14 +221,14 @@ void resolve_self_intersections(const MeshRepairOptions& options,
   for (Eigen::Index t = 0; t < mesh->num_triangles(); ++t)
     for (int k = 0; k < 3; ++k) work.triangles(t, k) = new_index[mesh->triangles(t, k)];
 
-  cgal_ops::ResolveOptions resolve;
+  geometry::ResolveOptions resolve;
   resolve.max_deviation =
       options.self_intersection_max_deviation * summary->after.bounding_box.diagonal().norm();
   resolve.parallel = check_options.parallel;
   {
-    ProgressTask task(options.progress, "resolve self-intersections", cgal_ops::kResolveSteps);
+    ProgressTask task(options.progress, "resolve self-intersections", geometry::kResolveSteps);
     resolve.progress = &task;
-    if (Status s = cgal_ops::resolve_self_intersections(resolve, &work, &stage.steps); !s.ok())
+    if (Status s = geometry::resolve_self_intersections(resolve, &work, &stage.steps); !s.ok())
       return fail(s.message());
   }
   if (std::none_of(stage.steps.begin(), stage.steps.end(),
@@ -365,12 +365,12 @@ Status repair_mesh(const MeshRepairOptions& options, TriangleMesh* mesh,
     }
     if (options.orient || options.remove_degenerate_triangles) {
       const MatrixX3d soup_positions = soup.vertices;
-      cgal_ops::SoupRepairOptions soup_options;
+      geometry::SoupRepairOptions soup_options;
       soup_options.orient = options.orient;
       soup_options.remove_collinear = options.remove_degenerate_triangles;
       soup_options.remove_duplicates = options.remove_duplicate_triangles;
-      cgal_ops::SoupRepairStats stats;
-      HC_RETURN_IF_ERROR(cgal_ops::repair_triangle_soup(soup_options, &soup, &stats));
+      geometry::SoupRepairStats stats;
+      HC_RETURN_IF_ERROR(geometry::repair_triangle_soup(soup_options, &soup, &stats));
       summary->removed_degenerate_triangles +=
           stats.collinear_before - stats.collinear_after + stats.degenerate_removed_later;
       summary->removed_duplicate_triangles += stats.duplicates_removed_later;

@@ -1,4 +1,4 @@
-#include "fabrication/mesh_check.h"
+#include "fabrication/printability/mesh_check.h"
 
 #include <fmt/format.h>
 
@@ -11,7 +11,7 @@
 #include <string>
 #include <vector>
 
-#include "cgal_mesh_ops.h"
+#include "geometry/mesh_ops.h"
 
 namespace hc::fabrication {
 namespace {
@@ -357,7 +357,7 @@ Result<MeshCheckReport> check_mesh(const TriangleMesh& mesh, const MeshCheckOpti
   clock.lap("topology");
 
   HC_ASSIGN_OR_RETURN(const std::vector<std::uint8_t> collinear,
-                      cgal_ops::collinear_triangles(mesh));
+                      geometry::collinear_triangles(mesh));
   std::vector<char> duplicate;
   find_duplicates(mesh, &report, &duplicate);
   report.degenerate_triangles = std::count(collinear.begin(), collinear.end(), 1);
@@ -367,7 +367,7 @@ Result<MeshCheckReport> check_mesh(const TriangleMesh& mesh, const MeshCheckOpti
   clock.lap("geometry");
 
   if (options.check_self_intersections) {
-    cgal_ops::SelfIntersectionQuery query;
+    geometry::SelfIntersectionQuery query;
     query.triangles.reserve(static_cast<std::size_t>(mesh.num_triangles()));
     for (Eigen::Index t = 0; t < mesh.num_triangles(); ++t) {
       // Repeated-corner triangles cannot enter a Surface_mesh, and a second copy of a triangle
@@ -379,10 +379,10 @@ Result<MeshCheckReport> check_mesh(const TriangleMesh& mesh, const MeshCheckOpti
     query.parallel = options.parallel;
     query.max_pairs = options.max_self_intersecting_pairs;
     ProgressTask task(options.progress, "mesh check: self-intersections",
-                      cgal_ops::kSelfIntersectionSteps);
+                      geometry::kSelfIntersectionSteps);
     query.progress = &task;
-    HC_ASSIGN_OR_RETURN(const cgal_ops::SelfIntersectionCount count,
-                        cgal_ops::count_self_intersecting_pairs(mesh, query));
+    HC_ASSIGN_OR_RETURN(const geometry::SelfIntersectionCount count,
+                        geometry::count_self_intersecting_pairs(mesh, query));
     report.self_intersections_checked = true;
     report.self_intersecting_pairs = count.pairs;
     report.self_intersection_limit_reached = count.limit_reached;

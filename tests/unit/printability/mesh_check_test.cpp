@@ -7,8 +7,8 @@
 #include <string>
 #include <vector>
 
-#include "fabrication/mesh_check.h"
-#include "fabrication/mesh_repair.h"
+#include "fabrication/printability/mesh_check.h"
+#include "fabrication/printability/mesh_repair.h"
 #include "synthetic_meshes.h"
 
 namespace hc::fabrication {

@@ -1,5 +1,7 @@
-// The only translation unit of hardcopy_fabrication that includes CGAL (see cgal_mesh_ops.h).
-#include "cgal_mesh_ops.h"
+// CGAL behind geometry/mesh_ops.h.
+#include "geometry/mesh_ops.h"
+
+#include "cgal_support.h"
 
 #include <CGAL/Exact_predicates_inexact_constructions_kernel.h>
 #include <CGAL/Polygon_mesh_processing/connected_components.h>
@@ -30,7 +32,7 @@
 #include <string_view>
 #include <utility>
 
-namespace hc::fabrication::cgal_ops {
+namespace hc::geometry {
 namespace {
 
 namespace PMP = CGAL::Polygon_mesh_processing;
@@ -69,18 +71,7 @@ std::int64_t count_collinear_faces(const SurfaceMesh& sm) {
   return n;
 }
 
-// Runs `body`, turning whatever CGAL, TBB or the allocator throws into a Status: no exception
-// leaves this file.
-template <class T, class Body>
-Result<T> guarded(std::string_view what, Body&& body) {
-  try {
-    return body();
-  } catch (const std::exception& e) {
-    return internal_error(fmt::format("{}: CGAL failed: {}", what, e.what()));
-  } catch (...) {
-    return internal_error(fmt::format("{}: CGAL failed with an unknown exception", what));
-  }
-}
+using internal::guarded;
 
 // Thrown by the soup path's output functor once max_pairs pairs are counted, to stop the sweep.
 struct StopCounting {};
@@ -628,4 +619,4 @@ Status resolve_self_intersections(const ResolveOptions& options, TriangleMesh* m
       .status();
 }
 
-}  // namespace hc::fabrication::cgal_ops
+}  // namespace hc::geometry

@@ -1,0 +1,102 @@
+// CGAL corefinement behind geometry/booleans.h.
+#include "geometry/booleans.h"
+
+#include <CGAL/Exact_predicates_exact_constructions_kernel.h>
+#include <CGAL/Polygon_mesh_processing/corefinement.h>
+#include <CGAL/Polygon_mesh_processing/measure.h>
+#include <CGAL/Polygon_mesh_processing/orientation.h>
+#include <CGAL/Polygon_mesh_processing/self_intersections.h>
+#include <CGAL/Surface_mesh.h>
+
+#include <chrono>
+
+#include "cgal_support.h"
+#include "geometry/mesh_ops.h"
+
+namespace hc::geometry {
+namespace {
+
+namespace PMP = CGAL::Polygon_mesh_processing;
+using ExactKernel = CGAL::Exact_predicates_exact_constructions_kernel;
+using ExactMesh = CGAL::Surface_mesh<ExactKernel::Point_3>;
+
+Result<ExactMesh> checked_input(const TriangleMesh& mesh, const char* which) {
+  const std::string what = fmt::format("boolean: the {} mesh", which);
+  HC_ASSIGN_OR_RETURN(ExactMesh sm, internal::to_surface_mesh<ExactKernel::Point_3>(mesh, what));
+  if (sm.is_empty()) return invalid_argument(what + " is empty");
+  if (!CGAL::is_closed(sm)) return invalid_argument(what + " is not closed (it has boundary edges)");
+  if (PMP::does_self_intersect(sm)) return invalid_argument(what + " intersects itself");
+  if (!PMP::does_bound_a_volume(sm)) {
+    return invalid_argument(what + " does not bound a volume (nested shells wrongly oriented)");
+  }
+  // CGAL takes an inward-oriented surface as bounding the unbounded complement; a printed part
+  // is never that, so say so rather than compute with the complement. The volume is exact.
+  if (PMP::volume(sm) < 0) return invalid_argument(what + " is inward oriented (negative volume)");
+  return sm;
+}
+
+}  // namespace
+
+const char* to_string(BooleanOperation op) {
+  switch (op) {
+    case BooleanOperation::kUnion: return "union";
+    case BooleanOperation::kDifference: return "difference";
+    case BooleanOperation::kIntersection: return "intersection";
+  }
+  return "unknown";
+}
+
+Result<BooleanOperation> parse_boolean_operation(const std::string& name) {
+  if (name == "union") return BooleanOperation::kUnion;
+  if (name == "difference") return BooleanOperation::kDifference;
+  if (name == "intersection") return BooleanOperation::kIntersection;
+  return invalid_argument(fmt::format(
+      "unknown boolean operation '{}' (expected union, difference or intersection)", name));
+}
+
+Result<TriangleMesh> corefine_boolean(const TriangleMesh& a, const TriangleMesh& b,
+                                      BooleanOperation op, BooleanSummary* summary) {
+  const auto start = std::chrono::steady_clock::now();
+  return internal::guarded<TriangleMesh>("boolean", [&]() -> Result<TriangleMesh> {
+    HC_ASSIGN_OR_RETURN(ExactMesh ma, checked_input(a, "first"));
+    HC_ASSIGN_OR_RETURN(ExactMesh mb, checked_input(b, "second"));
+    ExactMesh out;
+    bool ok = false;
+    switch (op) {
+      case BooleanOperation::kUnion: ok = PMP::corefine_and_compute_union(ma, mb, out); break;
+      case BooleanOperation::kDifference:
+        ok = PMP::corefine_and_compute_difference(ma, mb, out);
+        break;
+      case BooleanOperation::kIntersection:
+        ok = PMP::corefine_and_compute_intersection(ma, mb, out);
+        break;
+    }
+    if (!ok) {
+      return internal_error(fmt::format(
+          "boolean {}: CGAL could not build the result as a manifold mesh (the inputs touch "
+          "along a non-manifold curve)",
+          to_string(op)));
+    }
+    TriangleMesh result = internal::to_triangle_mesh(out);
+    if (summary != nullptr) {
+      summary->closed = CGAL::is_closed(out);
+      summary->self_intersecting_pairs_after_rounding = 0;
+      if (result.num_triangles() > 0) {
+        SelfIntersectionQuery query;
+        query.triangles.resize(static_cast<std::size_t>(result.num_triangles()));
+        for (std::size_t t = 0; t < query.triangles.size(); ++t) {
+          query.triangles[t] = static_cast<std::int32_t>(t);
+        }
+        query.is_polygon_mesh = true;
+        HC_ASSIGN_OR_RETURN(const SelfIntersectionCount count,
+                            count_self_intersecting_pairs(result, query));
+        summary->self_intersecting_pairs_after_rounding = count.pairs;
+      }
+      summary->time_s =
+          std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    }
+    return result;
+  });
+}
+
+}  // namespace hc::geometry

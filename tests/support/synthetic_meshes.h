@@ -1,0 +1,107 @@
+// Small meshes built by hand for the geometry and fabrication tests, their facts derived in the
+// comments.
+#pragma once
+
+#include <Eigen/Core>
+#include <Eigen/Geometry>
+#include <cmath>
+#include <map>
+#include <utility>
+#include <vector>
+
+#include "common/mesh.h"
+
+namespace hc::testing {
+
+// Axis-aligned box [lo, hi]; vertex i is corner (i & 1, i & 2, i & 4). 12 triangles,
+// counter-clockwise seen from outside (each face's normal checked by hand: bottom -z, top +z,
+// front -y, back +y, left -x, right +x).
+inline TriangleMesh box(const Eigen::Vector3d& lo, const Eigen::Vector3d& hi) {
+  TriangleMesh m;
+  m.vertices.resize(8, 3);
+  for (int i = 0; i < 8; ++i)
+    m.vertices.row(i) << ((i & 1) ? hi.x() : lo.x()), ((i & 2) ? hi.y() : lo.y()),
+        ((i & 4) ? hi.z() : lo.z());
+  m.triangles.resize(12, 3);
+  m.triangles << 0, 2, 3, 0, 3, 1,  // z = lo
+      4, 5, 7, 4, 7, 6,             // z = hi
+      0, 1, 5, 0, 5, 4,             // y = lo
+      2, 6, 7, 2, 7, 3,             // y = hi
+      0, 4, 6, 0, 6, 2,             // x = lo
+      1, 3, 7, 1, 7, 5;             // x = hi
+  return m;
+}
+
+inline TriangleMesh unit_cube() { return box({0, 0, 0}, {1, 1, 1}); }
+
+// All the triangles of `b` added to `a` as a second part of one mesh.
+inline TriangleMesh join(const TriangleMesh& a, const TriangleMesh& b) {
+  TriangleMesh m;
+  m.vertices.resize(a.num_vertices() + b.num_vertices(), 3);
+  m.vertices << a.vertices, b.vertices;
+  m.triangles.resize(a.num_triangles() + b.num_triangles(), 3);
+  m.triangles << a.triangles, (b.triangles.array() + static_cast<int>(a.num_vertices())).matrix();
+  return m;
+}
+
+inline void flip(TriangleMesh* m, Eigen::Index t) {
+  std::swap(m->triangles(t, 1), m->triangles(t, 2));
+}
+
+// Signed volume enclosed by a closed, outward-oriented mesh (divergence theorem: the sum of the
+// signed tetrahedra from the origin to each triangle).
+inline double signed_volume(const TriangleMesh& m) {
+  double v = 0.0;
+  for (Eigen::Index t = 0; t < m.num_triangles(); ++t) {
+    const Eigen::Vector3d a = m.vertices.row(m.triangles(t, 0));
+    const Eigen::Vector3d b = m.vertices.row(m.triangles(t, 1));
+    const Eigen::Vector3d c = m.vertices.row(m.triangles(t, 2));
+    v += a.dot(b.cross(c)) / 6.0;
+  }
+  return v;
+}
+
+// Icosphere: the regular icosahedron, each triangle split in four `subdivisions` times with the
+// new vertices pushed onto the sphere. 20 * 4^s triangles, 10 * 4^s + 2 vertices, outward
+// oriented. Its volume approaches 4/3 pi r^3 from below (inscribed polyhedron).
+inline TriangleMesh icosphere(const Eigen::Vector3d& centre, double radius, int subdivisions) {
+  const double g = (1.0 + std::sqrt(5.0)) / 2.0;
+  std::vector<Eigen::Vector3d> v = {{-1, g, 0}, {1, g, 0}, {-1, -g, 0}, {1, -g, 0},
+                                    {0, -1, g}, {0, 1, g}, {0, -1, -g}, {0, 1, -g},
+                                    {g, 0, -1}, {g, 0, 1}, {-g, 0, -1}, {-g, 0, 1}};
+  for (auto& p : v) p.normalize();
+  std::vector<Eigen::Vector3i> f = {{0, 11, 5}, {0, 5, 1},  {0, 1, 7},   {0, 7, 10}, {0, 10, 11},
+                                    {1, 5, 9},  {5, 11, 4}, {11, 10, 2}, {10, 7, 6}, {7, 1, 8},
+                                    {3, 9, 4},  {3, 4, 2},  {3, 2, 6},   {3, 6, 8},  {3, 8, 9},
+                                    {4, 9, 5},  {2, 4, 11}, {6, 2, 10},  {8, 6, 7},  {9, 8, 1}};
+  for (int s = 0; s < subdivisions; ++s) {
+    std::map<std::pair<int, int>, int> mid;
+    const auto midpoint = [&](int a, int b) {
+      const auto key = std::minmax(a, b);
+      const auto it = mid.find(key);
+      if (it != mid.end()) return it->second;
+      v.push_back((v[static_cast<std::size_t>(a)] + v[static_cast<std::size_t>(b)]).normalized());
+      const int id = static_cast<int>(v.size()) - 1;
+      mid.emplace(key, id);
+      return id;
+    };
+    std::vector<Eigen::Vector3i> next;
+    for (const auto& t : f) {
+      const int ab = midpoint(t[0], t[1]);
+      const int bc = midpoint(t[1], t[2]);
+      const int ca = midpoint(t[2], t[0]);
+      next.insert(next.end(), {{t[0], ab, ca}, {t[1], bc, ab}, {t[2], ca, bc}, {ab, bc, ca}});
+    }
+    f = std::move(next);
+  }
+  TriangleMesh m;
+  m.vertices.resize(static_cast<Eigen::Index>(v.size()), 3);
+  for (std::size_t i = 0; i < v.size(); ++i) {
+    m.vertices.row(static_cast<Eigen::Index>(i)) = (centre + radius * v[i]).transpose();
+  }
+  m.triangles.resize(static_cast<Eigen::Index>(f.size()), 3);
+  for (std::size_t i = 0; i < f.size(); ++i) m.triangles.row(static_cast<Eigen::Index>(i)) = f[i];
+  return m;
+}
+
+}  // namespace hc::testing
