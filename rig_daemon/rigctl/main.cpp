@@ -1,7 +1,7 @@
 // rigctl — the technician's client for rigd: status, devices, start PLAN.yaml, pause, resume,
-// stop, estop, and a progress display of a running capture (`start --wait`, `watch`).
-// Exit codes: 0 done; 1 rigd refused, is unreachable, or the capture did not complete; 2 bad
-// usage or a bad plan.
+// stop, estop, reset (after a safety stop), and a progress display of a running capture (`start
+// --wait`, `watch`). Exit codes: 0 done; 1 rigd refused, is unreachable, or the capture did not
+// complete; 2 bad usage or a bad plan.
 #include <unistd.h>
 #include <CLI/CLI.hpp>
 
@@ -72,6 +72,7 @@ void print_summary(const Json& s) {
                   fmt_double(a["mean_abs_ft_error_ns"].get<double>() * 1e-3, 1).c_str());
   }
   if (s.contains("trip")) std::printf("SAFETY    %s\n", s["trip"].dump().c_str());
+  if (s.contains("retract")) std::printf("retract   %s\n", s["retract"].dump().c_str());
   if (s.contains("devices"))
     for (const auto& [name, st] : s["devices"].items())
       std::printf("  %-10s received %s, lost %s, late %s\n", name.c_str(),
@@ -124,6 +125,9 @@ int main(int argc, char** argv) {
   app.add_subcommand("resume", "resume a paused capture");
   app.add_subcommand("stop", "stop the running capture (the session file is closed cleanly)");
   app.add_subcommand("estop", "emergency stop: halt the arm now and abort the capture");
+  app.add_subcommand("reset",
+                     "after a safety stop or estop (once the rig is safe): clear the arm's fault "
+                     "and devices in error, and allow captures again");
   auto* watch =
       app.add_subcommand("watch", "show the progress of the running capture until it ends");
   watch->add_flag("--json", json_out, "print the final summary as JSON");
@@ -162,6 +166,10 @@ int main(int argc, char** argv) {
                 r.value("sessions_dir", std::string("?")).c_str());
     if (r.contains("session") && r.value("state", std::string()) != "idle")
       print_progress(r["session"], false);
+    if (r.contains("safety_stop"))
+      std::printf("SAFETY STOP (%s: %s): captures are refused until `rigctl reset`\n",
+                  r["safety_stop"].value("kind", std::string()).c_str(),
+                  r["safety_stop"].value("message", std::string()).c_str());
     if (r.contains("last_session")) {
       std::printf("last session:\n");
       print_summary(r["last_session"]);
@@ -202,8 +210,10 @@ int main(int argc, char** argv) {
     return summary->value("state", std::string()) == "finished" ? 0 : 1;
   }
   if (cmd == "estop" && !json_out) {
-    std::printf("estop: arms stopped %s; session aborted: %s\n", (*result)["arms"].dump().c_str(),
-                (*result)["session_aborted"].get<bool>() ? "yes" : "no (none running)");
+    std::printf(
+        "estop: arms stopped %s; session aborted: %s; `rigctl reset` once the rig is safe\n",
+        (*result)["arms"].dump().c_str(),
+        (*result)["session_aborted"].get<bool>() ? "yes" : "no (none running)");
     return 0;
   }
   std::printf("%s: ok\n", cmd.c_str());

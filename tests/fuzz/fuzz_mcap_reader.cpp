@@ -1,17 +1,65 @@
 // libFuzzer target for the MCAP reader: arbitrary bytes are opened as an MCAP file (summary and
 // linear paths, truncated files allowed), every message is read in file and log-time order,
 // metadata / attachments / message indexes are read; the same bytes are also fed to every record
-// decoder and to the Foxglove image decoders. Errors are the expected outcome; crashes, hangs,
-// leaks, huge allocations and sanitizer reports are bugs.
+// decoder and to the Foxglove image decoders. The bytes also go through `session recover` (from a
+// file): whatever it accepts, the file it writes must pass `verify`, and what it refuses leaves
+// no file. Errors are the expected outcome; crashes, hangs, leaks, huge allocations and sanitizer
+// reports are bugs.
+#include <unistd.h>
+
 #include <cstddef>
 #include <cstdint>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <string>
 
 #include "rig_daemon/recording/foxglove_image.h"
 #include "rig_daemon/recording/mcap_reader.h"
 #include "rig_daemon/recording/mcap_records.h"
+#include "rig_daemon/recording/mcap_tools.h"
 #include "rig_daemon/recording/session_conventions.h"
 
 namespace rec = hc::recording;
+
+namespace {
+
+// recover() reads and writes files: one folder per fuzzing process, removed at exit.
+const std::filesystem::path& scratch() {
+  static const std::filesystem::path dir = [] {
+    std::filesystem::path d =
+        std::filesystem::temp_directory_path() / ("fuzz_mcap_reader." + std::to_string(::getpid()));
+    std::error_code ec;
+    std::filesystem::create_directories(d, ec);
+    std::atexit([] {
+      std::error_code e;
+      std::filesystem::remove_all(scratch(), e);
+    });
+    return d;
+  }();
+  return dir;
+}
+
+void check_recover(const std::uint8_t* data, std::size_t size) {
+  const std::filesystem::path& dir = scratch();
+  std::error_code ec;
+  const std::filesystem::path in = dir / "in.mcap";
+  const std::filesystem::path out = dir / "out.mcap";
+  std::filesystem::remove(out, ec);
+  {
+    std::ofstream f(in, std::ios::binary | std::ios::trunc);
+    f.write(reinterpret_cast<const char*>(data), static_cast<std::streamsize>(size));
+  }
+  auto rep = rec::recover(in, out, {}, 1u << 24);
+  if (!rep.ok()) {
+    if (std::filesystem::exists(out)) __builtin_trap();  // refused, yet wrote something
+    return;
+  }
+  auto v = rec::verify(out);
+  if (!v.ok() || !v->ok) __builtin_trap();
+}
+
+}  // namespace
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
   const rec::ByteSpan bytes(data, size);
@@ -60,6 +108,7 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   (void)rec::decode_data_end(bytes);
   (void)rec::decode_raw_image(bytes);
   (void)rec::decode_compressed_image(bytes);
+  check_recover(data, size);
   if (size > 1) {
     // Chunk payloads: the first byte picks the compression, the rest is the stream.
     const char* names[] = {"", "lz4", "zstd"};

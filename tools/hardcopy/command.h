@@ -2,6 +2,8 @@
 #pragma once
 
 #include <CLI/CLI.hpp>
+
+#include <cmath>
 #include <memory>
 #include <string>
 #include <string_view>
@@ -42,9 +44,11 @@ inline CLI::Validator zero_bound_check(bool strict) {
   return CLI::Validator(
       [strict](std::string& value) -> std::string {
         double v = 0;
-        const bool ok = CLI::detail::lexical_cast(value, v) && (strict ? v > 0 : v >= 0);
-        return ok ? std::string() : std::string(strict ? "must be > 0" : "must be >= 0") +
-                                        ", got " + value;
+        if (!CLI::detail::lexical_cast(value, v) || !std::isfinite(v))
+          return "must be a finite number, got " + value;
+        const bool ok = strict ? v > 0 : v >= 0;
+        return ok ? std::string()
+                  : std::string(strict ? "must be > 0" : "must be >= 0") + ", got " + value;
       },
       name, name);
 }
@@ -52,8 +56,9 @@ inline const CLI::Validator kPositive = zero_bound_check(true);
 inline const CLI::Validator kNonNegative = zero_bound_check(false);
 
 // Each family (one file, e.g. mesh_command.cpp) adds its subcommands to the app; a subcommand's
-// callback stores its exit code in *exit_code. Families register themselves at static-initialisation
-// time: `HC_REGISTER_COMMANDS(add_mesh_commands);` at namespace scope in the family's file.
+// callback stores its exit code in *exit_code. Families register themselves at
+// static-initialisation time: `HC_REGISTER_COMMANDS(add_mesh_commands);` at namespace scope in the
+// family's file.
 using CommandAdder = void (*)(CLI::App& app, const GlobalOptions& global, int* exit_code);
 struct CommandRegistration {
   CommandRegistration(int order, CommandAdder adder);

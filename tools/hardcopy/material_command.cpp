@@ -157,6 +157,13 @@ int run_synth(const GlobalOptions& global, const SynthArgs& args) {
     const int code = ctx.fail(kName, samples.status());
     return samples.status().code() == StatusCode::kInvalidArgument ? kExitBadInput : code;
   }
+  for (std::size_t i = 0; i < samples->examples.size(); ++i)
+    if (!samples->examples[i].positions_m.allFinite() ||
+        !std::isfinite(samples->max_displacement_m(i)))
+      return ctx.fail(kName, failed_precondition(fmt::format(
+                                 "example {}: non-finite positions (the reference model found no "
+                                 "equilibrium); nothing written",
+                                 i)));
   if (Status s = material::save_samples(args.output, *samples); !s.ok()) return ctx.fail(kName, s);
   const double time_s =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
@@ -272,6 +279,20 @@ int run_evaluate(const GlobalOptions& global, const EvaluateArgs& args) {
     const int code = ctx.fail(kName, ev.status());
     return ev.status().code() == StatusCode::kInvalidArgument ? kExitBadInput : code;
   }
+  // A non-finite error is a simulation that broke down, not a score (it printed inf and null).
+  bool finite = std::isfinite(ev->rms_error_m) && std::isfinite(ev->max_error_m) &&
+                std::isfinite(ev->error_rel_max_disp);
+  for (std::size_t i = 0; i < ev->example_rms_error_m.size(); ++i) {
+    if (std::isfinite(ev->example_rms_error_m[i])) continue;
+    return ctx.fail(kName, failed_precondition(
+                               fmt::format("example {}: the material gave non-finite positions (no "
+                                           "equilibrium under the example's forces)",
+                                           i)));
+  }
+  if (!finite)
+    return ctx.fail(kName, failed_precondition(fmt::format(
+                               "non-finite error (rms {} m, max {} m, max displacement {} m)",
+                               ev->rms_error_m, ev->max_error_m, ev->max_displacement_m)));
   if (args.json) {
     Json per_example = Json::array();
     for (double e : ev->example_rms_error_m) per_example.push_back(e);
@@ -299,7 +320,8 @@ void add_material_commands(CLI::App& app, const GlobalOptions& global, int* exit
       "synth",
       "Synthetic force-displacement samples from the neo-Hookean reference model (thesis Sec. "
       "4.5): probe positions and force levels (up to the scene's load.force_n) spread over the "
-      "top face, Gaussian noise on the displacements.\nExit 0 on success, 2 on bad input.");
+      "top face, Gaussian noise on the displacements.\nExit 0 on success, 1 when the reference "
+      "model finds no equilibrium, 2 on bad input.");
   sy->add_option("SCENE", sa->scene, "Scene JSON (as for hardcopy simulate)")->required();
   sy->add_option("-o,--output", sa->output, "Samples JSON to write")->required();
   sy->add_option("--examples", sa->examples, "Number of examples")
@@ -381,9 +403,7 @@ void add_material_commands(CLI::App& app, const GlobalOptions& global, int* exit
   e->add_option("--material", ea->material, "Material JSON (hardcopy.material)")->required();
   e->add_option("--samples", ea->samples, "Samples JSON (hardcopy.samples)")->required();
   e->add_flag("--json", ea->json, "Print one JSON object");
-  e->add_option("--steps", ea->steps, "Load increments")
-      ->check(kPositive)
-      ->capture_default_str();
+  e->add_option("--steps", ea->steps, "Load increments")->check(kPositive)->capture_default_str();
   e->callback([&global, ea, exit_code] { *exit_code = run_evaluate(global, *ea); });
 }
 

@@ -88,12 +88,29 @@ struct RepairArgs {
   bool json = false;
 };
 
+// --weld-tolerance at or above this fraction of the bounding-box diagonal is refused.
+constexpr double kMaxWeldFraction = 0.05;
+
 int run_repair(const GlobalOptions& global, const RepairArgs& args) {
   Context ctx(global);
   if (Result<MeshFormat> f = mesh_format_from_path(args.output); !f.ok())
     return ctx.fail("mesh repair", f.status());
   Result<TriangleMesh> mesh = read_mesh(args.input);
   if (!mesh.ok()) return ctx.fail("mesh repair", mesh.status());
+  if (mesh->num_vertices() > 0) {
+    // Welding merges near-duplicates; a tolerance on the scale of the mesh merges it into a point
+    // (1e308 used to write an empty mesh and exit 1).
+    const double diagonal =
+        (mesh->vertices.colwise().maxCoeff() - mesh->vertices.colwise().minCoeff()).norm();
+    if (args.weld_tolerance >= kMaxWeldFraction * diagonal && args.weld_tolerance > 0)
+      return ctx.fail("mesh repair",
+                      invalid_argument(fmt::format(
+                          "--weld-tolerance {:g} is {:.3g} of the mesh's bounding-box diagonal "
+                          "({:g}): welding would merge whole features, not duplicate vertices "
+                          "(use less than {:g})",
+                          args.weld_tolerance, args.weld_tolerance / diagonal, diagonal,
+                          kMaxWeldFraction * diagonal)));
+  }
   fabrication::MeshRepairOptions options;
   options.weld_tolerance = args.weld_tolerance;
   options.resolve_self_intersections = args.resolve_self_intersections;
@@ -101,6 +118,10 @@ int run_repair(const GlobalOptions& global, const RepairArgs& args) {
   fabrication::MeshRepairSummary summary;
   if (Status s = fabrication::repair_mesh(options, &*mesh, &summary); !s.ok())
     return ctx.fail("mesh repair", s.with_context(args.input));
+  if (mesh->num_triangles() == 0)
+    return ctx.fail("mesh repair",
+                    failed_precondition(fmt::format(
+                        "{}: the repair left no triangles; nothing written", args.input)));
   // The repaired mesh is written even when it is still not closed: it is better than the input,
   // and the exit code and the report say plainly that it is not printable.
   if (Status s = write_mesh(args.output, *mesh); !s.ok()) return ctx.fail("mesh repair", s);

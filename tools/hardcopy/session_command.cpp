@@ -133,7 +133,7 @@ int run_recover(const GlobalOptions& global, const RecoverArgs& args) {
                report->input_was_complete ? " (input was complete)"
                                           : "; input stopped at " + report->stop_reason);
     if (report->messages_dropped > 0)
-      fmt::print("  {} messages dropped: their channel definition was lost\n",
+      fmt::print("  {} messages dropped: their channel is defined nowhere intact in the file\n",
                  report->messages_dropped);
   }
   return kExitYes;

@@ -2,7 +2,12 @@
 // hardcopy validate fem: the FEM verification table (patch, cantilever, flat punch, sphere).
 #include <fmt/format.h>
 
+#include <Eigen/Dense>
+#include <algorithm>
+#include <array>
+#include <cmath>
 #include <filesystem>
+#include <map>
 #include <string>
 #include <vector>
 
@@ -21,12 +26,92 @@ struct SimulateArgs {
   bool json = false;
 };
 
+// A probe load past this is not a probe load (the rig's sensor reads 125 N; a press through any
+// specimen stays far below): 1e300 N used to run until "unreachable probe".
+constexpr double kMaxProbeForceN = 1e6;
+
+// Whether `p` lies on the triangle (a, b, c), within `tol` (a length).
+bool on_triangle(const Eigen::Vector3d& p, const Eigen::Vector3d& a, const Eigen::Vector3d& b,
+                 const Eigen::Vector3d& c, double tol) {
+  const Eigen::Vector3d n = (b - a).cross(c - a);
+  const double area2 = n.norm();
+  if (!(area2 > 0) || std::abs(n.dot(p - a)) > tol * area2) return false;
+  // Barycentric coordinates from the sub-triangle areas (signed along n).
+  const double u = n.dot((b - p).cross(c - p)) / (area2 * area2);
+  const double v = n.dot((c - p).cross(a - p)) / (area2 * area2);
+  const double rel = tol / std::sqrt(area2);
+  return u >= -rel && v >= -rel && 1 - u - v >= -rel;
+}
+
+// A tet that holds `p` in its interior or on a face shared with another tet, or -1: a probe whose
+// reference point is there starts inside the specimen. On the boundary surface is touching, not
+// inside (a flat probe at contact).
+Eigen::Index tet_containing(const TetMesh& mesh, const Eigen::Vector3d& p) {
+  static constexpr int kFaces[4][3] = {{1, 2, 3}, {0, 2, 3}, {0, 1, 3}, {0, 1, 2}};
+  const double tol =
+      1e-9 * (mesh.nodes.colwise().maxCoeff() - mesh.nodes.colwise().minCoeff()).norm();
+  Eigen::Index hit = -1;
+  for (Eigen::Index t = 0; t < mesh.num_tets() && hit < 0; ++t) {
+    const Eigen::Vector3d a = mesh.nodes.row(mesh.tets(t, 0)).transpose();
+    Eigen::Matrix3d m;
+    for (int k = 0; k < 3; ++k) m.col(k) = mesh.nodes.row(mesh.tets(t, k + 1)).transpose() - a;
+    if (!(std::abs(m.determinant()) > 0)) continue;
+    const Eigen::Vector3d l = m.inverse() * (p - a);
+    constexpr double kEps = 1e-9;
+    if (l.minCoeff() >= -kEps && l.sum() <= 1 + kEps) hit = t;
+  }
+  if (hit < 0) return -1;
+  std::map<std::array<int, 3>, int> faces;  // boundary faces: used by one tet
+  for (Eigen::Index t = 0; t < mesh.num_tets(); ++t)
+    for (const auto& f : kFaces) {
+      std::array<int, 3> key = {mesh.tets(t, f[0]), mesh.tets(t, f[1]), mesh.tets(t, f[2])};
+      std::sort(key.begin(), key.end());
+      ++faces[key];
+    }
+  for (const auto& [f, uses] : faces) {
+    if (uses != 1) continue;
+    if (on_triangle(p, mesh.nodes.row(f[0]).transpose(), mesh.nodes.row(f[1]).transpose(),
+                    mesh.nodes.row(f[2]).transpose(), tol))
+      return -1;
+  }
+  return hit;
+}
+
+// Non-finite numbers in a result mean the solve broke down (no equilibrium), never an answer.
+Status check_finite(const scene::SimulationResult& r) {
+  bool finite = std::isfinite(r.force_n) && std::isfinite(r.depth_m) &&
+                std::isfinite(r.max_displacement_m) && r.positions.allFinite();
+  for (const auto& s : r.steps)
+    finite = finite && std::isfinite(s.force_n) && std::isfinite(s.depth_m);
+  if (finite) return {};
+  return failed_precondition(fmt::format(
+      "the simulation gave non-finite values (force {} N, depth {} m, max displacement {} m): no "
+      "equilibrium was found",
+      r.force_n, r.depth_m, r.max_displacement_m));
+}
+
 int run_simulate(const GlobalOptions& global, const SimulateArgs& args) {
   Context ctx(global);
   Result<scene::Scene> sc = scene::read_scene(args.scene);
   if (!sc.ok()) return ctx.fail("simulate", sc.status());
+  if (sc->load.control == fem::LoadControl::kForce && sc->load.value > kMaxProbeForceN)
+    return ctx.fail("simulate", invalid_argument(fmt::format(
+                                    "{}: load.force_n {:g} N is not a probe load (at most {:g} N)",
+                                    args.scene, sc->load.value, kMaxProbeForceN)));
   Result<scene::SimulationResult> r = scene::simulate(*sc, ctx.progress());
   if (!r.ok()) return ctx.fail("simulate", r.status().with_context(args.scene));
+  if (sc->probe.shape != scene::ProbeSpec::Shape::kMesh) {
+    const Eigen::Index t = tet_containing(r->mesh, sc->probe.position_m);
+    if (t >= 0)
+      return ctx.fail(
+          "simulate",
+          invalid_argument(fmt::format(
+              "{}: probe.position_m ({:g}, {:g}, {:g}) is inside the specimen (tet {}): the probe "
+              "starts outside, touching or above the surface",
+              args.scene, sc->probe.position_m.x(), sc->probe.position_m.y(),
+              sc->probe.position_m.z(), t)));
+  }
+  if (Status s = check_finite(*r); !s.ok()) return ctx.fail("simulate", s.with_context(args.scene));
   if (!args.vtu.empty()) {
     VtuData data;
     data.positions = r->positions;
@@ -117,8 +202,9 @@ void add_simulate_commands(CLI::App& app, const GlobalOptions& global, int* exit
       "Simulate a probe indentation described by SCENE.json (specimen, material, fixed, probe, "
       "load, "
       "steps) with the co-rotational FEM or the neo-Hookean reference model.\nExit 0 on success, 1 "
-      "when no equilibrium is found, 2 on bad input (missing keys, NaN, inverted or degenerate "
-      "elements, unreachable probe).");
+      "when no equilibrium is found (also a probe that never reaches the specimen), 2 on bad input "
+      "(missing keys, NaN, out-of-range values, inverted or degenerate elements, a probe that "
+      "starts inside the specimen).");
   s->add_option("SCENE", sargs->scene, "Scene JSON file")->required();
   s->add_flag("--json", sargs->json,
               "Print one JSON object: force_n, depth_m, max_displacement_m, steps, nodes, tets, "

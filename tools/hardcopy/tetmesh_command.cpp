@@ -1,11 +1,14 @@
 // hardcopy tetmesh: closed surface mesh or TetGen .poly → tetrahedra (.node/.ele/.vtu).
 #include <fmt/format.h>
 
+#include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <filesystem>
 #include <string>
 
 #include "command.h"
+#include "common/file_io.h"
 #include "common/json.h"
 #include "common/mesh_io.h"
 #include "common/tet_mesh_io.h"
@@ -21,6 +24,7 @@ struct TetmeshArgs {
   double quality = 2.0;
   double max_volume_m3 = 0;
   double scale_to_m = 1.0;
+  long max_tets = 5'000'000;
   // Structured box specimen instead of IN: size (m), hexahedral cells per axis, min corner (m).
   std::vector<double> box_m;
   std::vector<int> cells;
@@ -65,6 +69,30 @@ Result<TetMesh> box_input(const TetmeshArgs& args, meshing::TetrahedralizeSummar
   return mesh;
 }
 
+// Points TetGen may add for --max-tets tets. Its meshes have 3.4-3.5 tets per node (measured on
+// pinion.off: 15,407 / 4,424 at the default quality, 276,453 / 56,733 at -q1.1), so a budget of
+// max_tets / 5 points keeps the element count under the limit whatever -q and -a ask.
+constexpr double kTetsPerNode = 5.0;
+long steiner_budget(long max_tets) {
+  return std::max<long>(1, static_cast<long>(static_cast<double>(max_tets) / kTetsPerNode));
+}
+
+// TetGen's -a mesh of a volume V has about kTetsPerVolumeBound * V / a tets once the volume bound
+// dominates (measured on pinion.off: 4.1 at a = 1e-4, V / a = 8.2e3; 20.7 at a = 1e-3 where the
+// surface refinement dominates); refuse up front what would exceed --max-tets instead of meshing
+// for minutes to find out.
+constexpr double kTetsPerVolumeBound = 6.0;
+Status check_tet_estimate(const TetmeshArgs& args, double volume_m3) {
+  if (!(args.max_volume_m3 > 0) || !(volume_m3 > 0)) return {};
+  const double estimate = kTetsPerVolumeBound * volume_m3 / args.max_volume_m3;
+  if (estimate <= static_cast<double>(args.max_tets)) return {};
+  return invalid_argument(fmt::format(
+      "--max-volume {:g} m^3 would make about {:.3g} tets of this {:.4g} m^3 volume, more than "
+      "--max-tets {}; use --max-volume {:.3g} or more (or raise --max-tets)",
+      args.max_volume_m3, estimate, volume_m3, args.max_tets,
+      kTetsPerVolumeBound * volume_m3 / static_cast<double>(args.max_tets)));
+}
+
 Result<TetMesh> mesh_input(const TetmeshArgs& args, meshing::TetrahedralizeSummary* summary) {
   if (!args.box_m.empty()) {
     if (!args.input.empty()) return invalid_argument("give either IN or --box, not both");
@@ -76,10 +104,16 @@ Result<TetMesh> mesh_input(const TetmeshArgs& args, meshing::TetrahedralizeSumma
   meshing::TetrahedralizeOptions options;
   options.max_radius_edge_ratio = args.quality;
   options.max_volume = args.max_volume_m3;
+  options.max_steiner_points = steiner_budget(args.max_tets);
   HC_RETURN_IF_ERROR(options.validate());
   if (std::filesystem::path(args.input).extension() == ".poly") {
     HC_ASSIGN_OR_RETURN(meshing::Plc plc, meshing::read_poly(args.input));
     plc.points *= args.scale_to_m;
+    if (plc.points.rows() > 0) {  // the bounding box bounds the volume
+      const Eigen::RowVector3d extent =
+          plc.points.colwise().maxCoeff() - plc.points.colwise().minCoeff();
+      HC_RETURN_IF_ERROR(check_tet_estimate(args, extent.prod()));
+    }
     for (auto& f : plc.facets)
       for (auto& h : f.holes) h *= args.scale_to_m;
     for (auto& h : plc.holes) h *= args.scale_to_m;
@@ -104,6 +138,8 @@ Result<TetMesh> mesh_input(const TetmeshArgs& args, meshing::TetrahedralizeSumma
                     "self-intersections (try `hardcopy mesh repair --resolve-self-intersections`)",
                     args.input));
   surface.vertices *= args.scale_to_m;
+  HC_RETURN_IF_ERROR(check_tet_estimate(
+      args, std::abs(report.volume) * args.scale_to_m * args.scale_to_m * args.scale_to_m));
   Result<TetMesh> m = meshing::tetrahedralize(surface, options, summary);
   if (!m.ok()) return m.status().with_context(args.input);
   return m;
@@ -119,10 +155,21 @@ int run_tetmesh(const GlobalOptions& global, const TetmeshArgs& args) {
   meshing::TetrahedralizeSummary summary;
   Result<TetMesh> mesh = mesh_input(args, &summary);
   if (!mesh.ok()) return ctx.fail("tetmesh", mesh.status());
+  const long budget = steiner_budget(args.max_tets);
+  if (!summary.switches.empty() && summary.nodes - summary.input_vertices >= budget)
+    return ctx.fail("tetmesh",
+                    invalid_argument(fmt::format(
+                        "TetGen used all {} points that --max-tets {} allows without meeting "
+                        "--quality {} / --max-volume {}: loosen them or raise --max-tets",
+                        budget, args.max_tets, args.quality, args.max_volume_m3)));
   const std::filesystem::path base = output_base(args.output);
-  if (Status s = write_tetgen(base, *mesh); !s.ok()) return ctx.fail("tetmesh", s);
+  // The three files appear together or not at all (a failed or killed run leaves no .node/.ele
+  // without their .vtu; leftovers of a killed run are removed by the next).
+  AtomicFileGroup out(base, {".node", ".ele", ".vtu"});
+  if (Status s = write_tetgen(out.staged_base(), *mesh); !s.ok()) return ctx.fail("tetmesh", s);
+  if (Status s = write_vtu(out.staged(2), *mesh); !s.ok()) return ctx.fail("tetmesh", s);
+  if (Status s = out.commit(); !s.ok()) return ctx.fail("tetmesh", s);
   const std::filesystem::path vtu(base.string() + ".vtu");
-  if (Status s = write_vtu(vtu, *mesh); !s.ok()) return ctx.fail("tetmesh", s);
   const double time_s =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   if (args.json) {
@@ -162,11 +209,16 @@ void add_tetmesh_commands(CLI::App& app, const GlobalOptions& global, int* exit_
   c->add_option("-o,--output", args->output, "Output base name (OUT.node, OUT.ele, OUT.vtu)")
       ->required();
   c->add_option("--quality", args->quality,
-                "Maximum radius-edge ratio of the tets (TetGen -q; >= 1.0, 0 = no refinement)")
+                "Maximum radius-edge ratio of the tets (TetGen -q; >= 1.1, 0 = no refinement)")
       ->capture_default_str();
   c->add_option("--max-volume", args->max_volume_m3,
                 "Maximum tet volume in m^3, after scaling (TetGen -a; 0 = none)")
       ->check(kNonNegative)
+      ->capture_default_str();
+  c->add_option("--max-tets", args->max_tets,
+                "Refuse (exit 2) a mesh of more tets: checked up front from the volume and "
+                "--max-volume, and TetGen may add at most max-tets/5 points")
+      ->check(CLI::Range(1L, 500'000'000L))
       ->capture_default_str();
   c->add_option("--scale-to-m", args->scale_to_m,
                 "Multiply input coordinates by this to get metres (0.001 for a mesh in mm)")

@@ -1,5 +1,7 @@
 #include "processing/fem/material_model.h"
 
+#include <fmt/format.h>
+
 #include <algorithm>
 #include <cmath>
 #include <string>
@@ -17,9 +19,13 @@ YoungsPoisson youngs_poisson_from_lambda_alpha(const LambdaAlpha& p) {
 }
 
 Status validate_youngs_poisson(double youngs_pa, double poisson) {
-  if (!std::isfinite(youngs_pa) || youngs_pa <= 0) {
-    return invalid_argument("Young's modulus must be a finite positive number of Pa, got " +
-                            std::to_string(youngs_pa));
+  // Diamond, the stiffest bulk material, has E = 1.05e12 Pa; anything above is a typo, and values
+  // near DBL_MAX overflow the stiffness matrix and the contact penalty (which scales with E).
+  constexpr double kMaxYoungsPa = 1e13;
+  if (!std::isfinite(youngs_pa) || youngs_pa <= 0 || youngs_pa > kMaxYoungsPa) {
+    return invalid_argument(
+        fmt::format("Young's modulus must be in (0, {:g}] Pa (diamond: 1.05e12 Pa), got {:g}",
+                    kMaxYoungsPa, youngs_pa));
   }
   if (!std::isfinite(poisson) || poisson <= -1.0 || poisson >= 0.5) {
     return invalid_argument("Poisson's ratio must lie in (-1, 0.5), got " +

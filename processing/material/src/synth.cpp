@@ -15,8 +15,15 @@ constexpr std::uint64_t kNoiseStream = 0x9e3779b97f4a7c15ULL;
 }  // namespace
 
 Status SynthOptions::validate() const {
-  if (examples < 1) return invalid_argument("--examples: must be >= 1");
-  if (!(noise >= 0) || !std::isfinite(noise)) return invalid_argument("--noise: must be >= 0");
+  if (examples < 1 || examples > kMaxSynthExamples)
+    return invalid_argument(fmt::format(
+        "--examples {}: must be in [1, {}] (each example is a full hyperelastic simulation)",
+        examples, kMaxSynthExamples));
+  if (!(noise >= 0 && noise <= kMaxSynthNoise))
+    return invalid_argument(fmt::format(
+        "--noise {}: must be in [0, {}] (the standard deviation relative to the example's largest "
+        "displacement: 0.1 = 10 %)",
+        noise, kMaxSynthNoise));
   if (!(max_force_n > 0) || !std::isfinite(max_force_n))
     return invalid_argument("force: must be a finite number > 0");
   if (!(min_force_fraction > 0 && min_force_fraction <= 1))

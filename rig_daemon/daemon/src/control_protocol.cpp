@@ -6,7 +6,7 @@
 namespace hc::rig {
 namespace {
 
-constexpr std::array<std::pair<Command, std::string_view>, 9> kCommands{{
+constexpr std::array<std::pair<Command, std::string_view>, 10> kCommands{{
     {Command::kStatus, "status"},
     {Command::kDevices, "devices"},
     {Command::kStart, "start"},
@@ -14,6 +14,7 @@ constexpr std::array<std::pair<Command, std::string_view>, 9> kCommands{{
     {Command::kResume, "resume"},
     {Command::kStop, "stop"},
     {Command::kEstop, "estop"},
+    {Command::kReset, "reset"},
     {Command::kSubscribe, "subscribe"},
     {Command::kShutdown, "shutdown"},
 }};
@@ -161,6 +162,42 @@ Result<Reply> decode_reply(std::string_view line) {
   if (code == StatusCode::kOk) code = StatusCode::kInternal;
   r.status = Status(code, message);
   return r;
+}
+
+void RequestFramer::append(std::string_view bytes) {
+  if (overlong_ || eof_) return;
+  if (head_ > 0 && head_ * 2 >= buffer_.size()) {  // drop what was taken (amortised O(1))
+    buffer_.erase(0, head_);
+    scanned_ -= head_;
+    head_ = 0;
+  }
+  buffer_.append(bytes);
+}
+
+std::optional<std::string> RequestFramer::next() {
+  while (!overlong_ && head_ < buffer_.size()) {
+    const std::size_t nl = buffer_.find('\n', scanned_);
+    std::string_view line;
+    if (nl != std::string::npos) {
+      line = std::string_view(buffer_).substr(head_, nl - head_);
+      head_ = scanned_ = nl + 1;
+    } else {
+      scanned_ = buffer_.size();
+      // "+ 1": a line of exactly max bytes may still be waiting for its "\r\n".
+      if (buffer_.size() - head_ > max_line_bytes_ + 1) {
+        overlong_ = true;
+        buffer_.clear();
+        head_ = scanned_ = 0;
+        return std::nullopt;
+      }
+      if (!eof_) return std::nullopt;
+      line = std::string_view(buffer_).substr(head_);  // end-of-file: the rest is a line
+      head_ = scanned_ = buffer_.size();
+    }
+    if (line.empty() || line == "\r") continue;
+    return std::string(line);
+  }
+  return std::nullopt;
 }
 
 }  // namespace hc::rig

@@ -7,9 +7,11 @@
 #include <sys/un.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cerrno>
 #include <chrono>
 #include <cstring>
+#include <string_view>
 
 namespace hc::rig {
 namespace {
@@ -42,7 +44,7 @@ ssize_t send_some(int fd, const std::string& buf) {
 }  // namespace
 
 Result<std::unique_ptr<ControlServer>> ControlServer::start(const std::filesystem::path& path,
-                                                            Handler handler) {
+                                                            Handler handler, Limits limits) {
   HC_ASSIGN_OR_RETURN(sockaddr_un addr, socket_address(path));
   std::error_code ec;
   if (path.has_parent_path()) std::filesystem::create_directories(path.parent_path(), ec);
@@ -80,14 +82,18 @@ Result<std::unique_ptr<ControlServer>> ControlServer::start(const std::filesyste
     std::filesystem::remove(path, ec);
     return s;
   }
-  std::unique_ptr<ControlServer> server(new ControlServer(path, fd, std::move(handler)));
+  std::unique_ptr<ControlServer> server(new ControlServer(path, fd, std::move(handler), limits));
   if (::pipe2(server->wake_pipe_, O_CLOEXEC | O_NONBLOCK) != 0) return errno_status("pipe");
   server->thread_ = std::thread([s = server.get()] { s->run(); });
   return server;
 }
 
-ControlServer::ControlServer(std::filesystem::path path, int listen_fd, Handler handler)
-    : path_(std::move(path)), listen_fd_(listen_fd), handler_(std::move(handler)) {}
+ControlServer::ControlServer(std::filesystem::path path, int listen_fd, Handler handler,
+                             Limits limits)
+    : path_(std::move(path)),
+      listen_fd_(listen_fd),
+      handler_(std::move(handler)),
+      limits_(limits) {}
 
 ControlServer::~ControlServer() {
   stop_ = true;
@@ -127,118 +133,176 @@ void ControlServer::broadcast(std::string_view event, const Json& fields) {
 
 void ControlServer::run() {
   std::vector<pollfd> fds;
+  std::vector<Connection*> polled;
   while (!stop_) {
     fds.clear();
+    polled.clear();
     fds.push_back({listen_fd_, POLLIN, 0});
     fds.push_back({wake_pipe_[0], POLLIN, 0});
     {
       std::lock_guard lock(mutex_);
       for (auto& c : connections_) {
-        short events = c->closing ? 0 : POLLIN;
+        short events = c->read_closed ? 0 : POLLIN;
         if (!c->out.empty()) events |= POLLOUT;
         fds.push_back({c->fd, events, 0});
+        polled.push_back(c.get());
       }
     }
-    if (::poll(fds.data(), fds.size(), 200) < 0 && errno != EINTR) break;
+    // The timeout bounds how late idle connections are expired.
+    if (::poll(fds.data(), fds.size(), 100) < 0 && errno != EINTR) break;
     if (fds[1].revents & POLLIN) {
       char buf[64];
       while (::read(wake_pipe_[0], buf, sizeof(buf)) > 0) {
       }
     }
-    if (fds[0].revents & POLLIN) {
-      while (true) {
-        const int cfd = ::accept4(listen_fd_, nullptr, nullptr, SOCK_CLOEXEC | SOCK_NONBLOCK);
-        if (cfd < 0) break;
-        std::lock_guard lock(mutex_);
-        if (connections_.size() >= kMaxConnections) {
-          ::close(cfd);
-          continue;
-        }
-        auto c = std::make_unique<Connection>();
-        c->fd = cfd;
-        connections_.push_back(std::move(c));
+    TimePoint now = std::chrono::steady_clock::now();
+    if (fds[0].revents & POLLIN) accept_all(now);
+    for (std::size_t i = 0; i < polled.size(); ++i) {
+      Connection& c = *polled[i];
+      if ((fds[i + 2].revents & (POLLIN | POLLHUP | POLLERR)) && !c.read_closed) {
+        read_input(c);
+        if (!c.linger_until) answer_requests(c);
       }
+      now = std::chrono::steady_clock::now();
+      expire(c, now);
+      flush(c, now);
     }
-    // Connections polled this round are the first fds.size() - 2 entries (accepted ones follow).
-    const std::size_t polled = fds.size() - 2;
-    std::vector<std::string> lines;
-    for (std::size_t i = 0; i < polled; ++i) {
-      Connection* c = nullptr;
-      {
+    std::lock_guard lock(mutex_);
+    std::erase_if(connections_, [&](const std::unique_ptr<Connection>& c) {
+      const bool done = c->linger_until && (c->read_closed || now >= *c->linger_until);
+      if (done) ::close(c->fd);
+      return done;
+    });
+    connection_count_ = connections_.size();
+  }
+}
+
+void ControlServer::accept_all(TimePoint now) {
+  while (true) {
+    const int cfd = ::accept4(listen_fd_, nullptr, nullptr, SOCK_CLOEXEC | SOCK_NONBLOCK);
+    if (cfd < 0) return;
+    std::lock_guard lock(mutex_);
+    // Connections being closed (answered, lingering a moment for the client to read) do not hold
+    // a slot; the hard bound on all of them keeps a flood from growing the set without limit.
+    const auto open = static_cast<std::size_t>(std::count_if(
+        connections_.begin(), connections_.end(), [](const auto& c) { return !c->closing; }));
+    if (connections_.size() >= limits_.max_connections + 2 * limits_.reserved_connections + 16) {
+      ::close(cfd);
+      continue;
+    }
+    auto c = std::make_unique<Connection>();
+    c->fd = cfd;
+    c->last_request = now;
+    if (open >= limits_.max_connections + limits_.reserved_connections) {
+      c->out =
+          encode_error(0, Status(StatusCode::kUnavailable,
+                                 "rigd: all " + std::to_string(open) +
+                                     " control connections are in use, including the ones "
+                                     "kept for estop; idle connections close after " +
+                                     std::to_string(limits_.idle_timeout.count() / 1000) + " s")) +
+          "\n";
+      c->closing = true;
+    } else if (open >= limits_.max_connections) {
+      c->reserved = true;
+    }
+    connections_.push_back(std::move(c));
+  }
+}
+
+void ControlServer::read_input(Connection& c) {
+  char buf[65536];
+  while (true) {
+    const ssize_t n = ::recv(c.fd, buf, sizeof(buf), MSG_DONTWAIT);
+    if (n > 0) {
+      if (!c.linger_until) c.framer.append(std::string_view(buf, static_cast<std::size_t>(n)));
+      continue;
+    }
+    if (n < 0 && (errno == EAGAIN || errno == EWOULDBLOCK)) return;
+    if (n < 0 && errno == EINTR) continue;
+    // End-of-file (the client half-closed or closed) or a broken connection: no more input, but
+    // the complete lines already buffered are still executed (an estop must not be lost).
+    c.framer.finish();
+    c.read_closed = true;
+    return;
+  }
+}
+
+void ControlServer::answer_requests(Connection& c) {
+  while (!c.closing) {
+    std::optional<std::string> line = c.framer.next();
+    if (!line) break;
+    c.last_request = std::chrono::steady_clock::now();
+    std::string reply;
+    Result<Request> req = decode_request(*line);
+    if (!req.ok()) {
+      reply = encode_error(0, req.status());
+    } else if (c.reserved && req->command != Command::kEstop) {
+      reply = encode_error(
+          req->id,
+          Status(StatusCode::kUnavailable,
+                 "rigd: all " + std::to_string(limits_.max_connections) +
+                     " control connections are in use; this extra connection serves only estop "
+                     "(connections that send nothing for " +
+                     std::to_string(limits_.idle_timeout.count() / 1000) + " s are closed)"));
+    } else {
+      Status error;
+      Json result = handler_(*req, error);
+      reply = error.ok() ? encode_ok(req->id, result) : encode_error(req->id, error);
+      if (error.ok() && req->command == Command::kSubscribe) {
         std::lock_guard lock(mutex_);
-        c = connections_[i].get();
-      }
-      const short re = fds[i + 2].revents;
-      if (re & (POLLIN | POLLHUP | POLLERR)) {
-        char buf[65536];
-        while (true) {
-          const ssize_t n = ::recv(c->fd, buf, sizeof(buf), MSG_DONTWAIT);
-          if (n > 0) {
-            c->in.append(buf, static_cast<std::size_t>(n));
-            if (c->in.size() > kMaxRequestBytes + 2 && c->in.find('\n') == std::string::npos) {
-              std::lock_guard lock(mutex_);
-              c->out +=
-                  encode_error(0, invalid_argument("control request: longer than " +
-                                                   std::to_string(kMaxRequestBytes) + " bytes")) +
-                  "\n";
-              c->in.clear();
-              c->closing = true;
-              break;
-            }
-            continue;
-          }
-          if (n == 0 || (errno != EAGAIN && errno != EWOULDBLOCK && errno != EINTR)) {
-            std::lock_guard lock(mutex_);
-            c->closing = true;
-            c->out.clear();
-          }
-          break;
-        }
-        std::size_t pos;
-        while (!c->closing && (pos = c->in.find('\n')) != std::string::npos) {
-          std::string line = c->in.substr(0, pos);
-          c->in.erase(0, pos + 1);
-          if (line.empty() || line == "\r") continue;
-          std::string reply;
-          Result<Request> req = decode_request(line);
-          if (!req.ok()) {
-            reply = encode_error(0, req.status());
-          } else {
-            Status error;
-            Json result = handler_(*req, error);
-            reply = error.ok() ? encode_ok(req->id, result) : encode_error(req->id, error);
-            if (error.ok() && req->command == Command::kSubscribe) {
-              std::lock_guard lock(mutex_);
-              c->subscribed = true;
-            }
-          }
-          std::lock_guard lock(mutex_);
-          c->out += reply + "\n";
-        }
-      }
-      std::lock_guard lock(mutex_);
-      while (!c->out.empty()) {
-        const ssize_t n = send_some(c->fd, c->out);
-        if (n > 0) {
-          c->out.erase(0, static_cast<std::size_t>(n));
-          continue;
-        }
-        if (n < 0 && errno != EAGAIN && errno != EWOULDBLOCK && errno != EINTR) {
-          c->closing = true;
-          c->out.clear();
-        }
-        break;
+        c.subscribed = true;
       }
     }
     std::lock_guard lock(mutex_);
-    std::erase_if(connections_, [](const std::unique_ptr<Connection>& c) {
-      if (c->closing && c->out.empty()) {
-        ::close(c->fd);
-        return true;
-      }
-      return false;
-    });
-    connection_count_ = connections_.size();
+    c.out += reply + "\n";
+    if (c.reserved) c.closing = true;  // one request per reserved connection
+  }
+  std::lock_guard lock(mutex_);
+  if (c.framer.overlong()) {
+    c.out += encode_error(0, invalid_argument("control request: longer than " +
+                                              std::to_string(kMaxRequestBytes) + " bytes")) +
+             "\n";
+    c.closing = true;
+  }
+  if (c.framer.drained()) c.closing = true;  // end-of-file and every line answered
+}
+
+void ControlServer::expire(Connection& c, TimePoint now) {
+  if (c.closing || c.subscribed) return;
+  const auto limit = c.reserved ? limits_.reserved_deadline : limits_.idle_timeout;
+  if (now - c.last_request < limit) return;
+  std::lock_guard lock(mutex_);
+  c.out +=
+      encode_error(
+          0, Status(StatusCode::kDeadlineExceeded,
+                    "rigd: no request for " +
+                        std::to_string(
+                            std::chrono::duration_cast<std::chrono::milliseconds>(limit).count()) +
+                        " ms; closing this control connection")) +
+      "\n";
+  c.closing = true;
+}
+
+void ControlServer::flush(Connection& c, TimePoint now) {
+  std::lock_guard lock(mutex_);
+  while (!c.out.empty()) {
+    const ssize_t n = send_some(c.fd, c.out);
+    if (n > 0) {
+      c.out.erase(0, static_cast<std::size_t>(n));
+      continue;
+    }
+    if (n < 0 && errno == EINTR) continue;
+    if (n < 0 && errno != EAGAIN && errno != EWOULDBLOCK) {
+      c.out.clear();  // the peer is gone
+      c.closing = true;
+    }
+    break;
+  }
+  if (c.closing && c.out.empty() && !c.linger_until) {
+    // Shut our side and read (discarding) until the client closes: closing a Unix socket with
+    // unread input would reset the connection and could lose the reply just sent.
+    ::shutdown(c.fd, SHUT_WR);
+    c.linger_until = now + std::chrono::milliseconds(500);
   }
 }
 

@@ -3,7 +3,36 @@
 #include <chrono>
 #include <ctime>
 
+#include "rig_daemon/devices/arm.h"
+
 namespace hc::rig {
+
+namespace {
+
+// Clears an arm's fault (activating it for the purpose when a session left it inactive). The arm
+// does not move.
+Status clear_arm_fault(devices::Arm& arm, Json& report) {
+  const bool was_inactive = arm.state() == devices::DeviceState::kInactive;
+  if (was_inactive) HC_RETURN_IF_ERROR(arm.activate());
+  Status status;
+  Result<devices::ArmState> st = arm.read();
+  if (st.ok() && st->motion == devices::ArmMotion::kFault) {
+    devices::ArmCommand clear;
+    clear.type = devices::ArmCommand::Type::kClearFault;
+    status = arm.write(clear);
+    if (status.ok()) st = arm.read();
+    if (status.ok() && st.ok() && st->motion == devices::ArmMotion::kFault)
+      status =
+          failed_precondition("arm '" + arm.name() + "' is still in fault after clear_fault (" +
+                              st->fault + "); the safety stop stays");
+    report.push_back(Json{{"device", arm.name()}, {"action", "clear_fault"}, {"ok", status.ok()}});
+  }
+  if (!st.ok() && status.ok()) status = st.status();
+  if (was_inactive) (void)arm.deactivate();
+  return status;
+}
+
+}  // namespace
 
 Result<std::unique_ptr<Daemon>> Daemon::create(Options options) {
   std::unique_ptr<Daemon> d(new Daemon(std::move(options)));
@@ -49,6 +78,10 @@ Result<Json> Daemon::start(const Plan& plan) {
   if (running_)
     return failed_precondition("a session is already running (" +
                                std::string(to_string(session_->state())) + "); stop it first");
+  if (!safety_stop_.is_null())
+    return failed_precondition(
+        "the rig is in a safety stop (" + safety_stop_.value("kind", std::string()) + ": " +
+        safety_stop_.value("message", std::string()) + "); make it safe, then `rigctl reset`");
   HC_RETURN_IF_ERROR(Session::validate(*rig_, plan));
   if (thread_.joinable()) thread_.join();
   SessionOptions so;
@@ -68,6 +101,10 @@ Result<Json> Daemon::start(const Plan& plan) {
     std::lock_guard l(mutex_);
     if (summary.ok()) {
       last_summary_ = *summary;
+      if (summary->contains("trip"))
+        safety_stop_ = Json{{"kind", (*summary)["trip"].value("kind", std::string())},
+                            {"message", (*summary)["trip"].value("message", std::string())},
+                            {"session", summary->value("session", std::string())}};
     } else {
       last_summary_ = Json{{"state", "failed"}, {"reason", summary.status().message()}};
       if (options_.on_event) options_.on_event("finished", last_summary_);
@@ -109,7 +146,36 @@ Json Daemon::estop() {
   }
   std::lock_guard lock(mutex_);
   if (running_) session_->estop();
+  safety_stop_ = Json{{"kind", "estop"}, {"message", "emergency stop requested"}};
   return Json{{"arms", stopped}, {"session_aborted", running_}};
+}
+
+Result<Json> Daemon::reset() {
+  std::lock_guard lock(mutex_);
+  if (running_) return failed_precondition("a session is running; stop it first");
+  Json actions = Json::array();
+  for (const auto& d : rig_->devices()) {
+    if (d->state() != devices::DeviceState::kError) continue;
+    const Status s = d->reset();
+    actions.push_back(Json{{"device", d->name()}, {"action", "reset"}, {"ok", s.ok()}});
+    if (!s.ok())
+      return Status(s.code(), "device '" + d->name() + "' stays in error: " + s.message() +
+                                  "; the safety stop stays");
+  }
+  if (options_.replay.empty()) {  // a replayed arm takes no commands
+    for (const auto& d : rig_->devices()) {
+      if (d->kind() != DeviceKind::kArm) continue;
+      HC_RETURN_IF_ERROR(clear_arm_fault(*static_cast<devices::Arm*>(d.get()), actions));
+    }
+  }
+  Json cleared = std::move(safety_stop_);
+  safety_stop_ = nullptr;
+  return Json{{"cleared", cleared}, {"actions", actions}};
+}
+
+Json Daemon::safety_stop() const {
+  std::lock_guard lock(mutex_);
+  return safety_stop_;
 }
 
 bool Daemon::wait_idle(int timeout_ms) {
@@ -134,6 +200,7 @@ Json Daemon::status() const {
          {"state", running_ ? std::string(to_string(session_->state())) : std::string("idle")}};
   if (session_) j["session"] = session_->progress();
   if (!last_summary_.is_null()) j["last_session"] = last_summary_;
+  if (!safety_stop_.is_null()) j["safety_stop"] = safety_stop_;
   return j;
 }
 
@@ -169,6 +236,14 @@ Json Daemon::handle(const Request& request, Status& error) {
       return Json{{"state", "stopping"}};
     case Command::kEstop:
       return estop();
+    case Command::kReset: {
+      Result<Json> r = reset();
+      if (!r.ok()) {
+        error = r.status();
+        return {};
+      }
+      return *r;
+    }
     case Command::kSubscribe:
       return Json{{"subscribed", true}};
     case Command::kShutdown:

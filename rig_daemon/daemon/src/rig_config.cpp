@@ -34,6 +34,7 @@ Status RigConfig::read(ConfigNode node) {
   // The simulated world's options (sim::WorldOptions) are read when the rig is built.
   if (std::optional<ConfigNode> w = node.find("world")) w->allow_unknown_keys();
   node.optional("max_force_n", max_force_n, Bounds{0.0, kMaxPlanForceN, true, false});
+  node.optional("start_max_force_n", start_max_force_n, Bounds{0.0, kMaxPlanForceN, true, false});
   std::string dir;
   if (node.optional("sessions_dir", dir)) {
     if (dir.empty()) node.error("sessions_dir", "expected a directory");
@@ -55,6 +56,9 @@ Status RigConfig::read(ConfigNode node) {
   if (node.status().ok()) {
     if (stall_timeout_s < control_period_s)
       node.error("stall_timeout_s", "must be at least control_period_s");
+    if (start_max_force_n >= max_force_n)
+      node.error("start_max_force_n",
+                 "must be below max_force_n (" + std::to_string(max_force_n) + " N)");
   }
   return node.status();
 }
@@ -81,6 +85,7 @@ Json RigConfig::to_json() const {
               {"devices", devs},
               {"workspace", workspace.to_json()},
               {"max_force_n", max_force_n},
+              {"start_max_force_n", start_max_force_n},
               {"sessions_dir", sessions_dir.string()},
               {"socket", default_socket_path(*this).string()},
               {"control_period_s", control_period_s},

@@ -30,6 +30,8 @@ std::string_view to_string(SafetyTrip::Kind kind) {
       return "estop";
     case SafetyTrip::Kind::kDeviceError:
       return "device_error";
+    case SafetyTrip::Kind::kStartCheck:
+      return "start_check";
   }
   return "unknown";
 }

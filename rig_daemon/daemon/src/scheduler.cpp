@@ -10,11 +10,9 @@
 #include "rig_daemon/devices/sim_scene.h"
 #include "rig_daemon/recording/foxglove_image.h"
 #include "rig_daemon/recording/session_conventions.h"
+#include "session_impl.h"
 
 namespace hc::rig {
-
-namespace rec = hc::recording;
-namespace dev = hc::devices;
 
 namespace {
 
@@ -25,8 +23,6 @@ constexpr double kContactForceN = 0.2;
 constexpr double kStepTolerance = 0.02;
 // Probe increments while seeking a step's force stay within [step_m / 20, 5 step_m].
 constexpr int kMaxSeekMovesPerStep = 40;
-// Samples averaged for the "current force" (about 1.4 ms of a 7 kHz stream).
-constexpr std::size_t kForceWindow = 10;
 constexpr double kApproachSpeedMps = 0.05;
 constexpr double kPressSpeedMps = 0.02;
 // How long to wait for the frames and samples of one trigger edge.
@@ -38,8 +34,6 @@ constexpr std::int64_t kFtAfterMoveTimeoutNs = 1'000'000'000;
 // Progress events at most this often.
 constexpr std::int64_t kProgressPeriodNs = 100'000'000;
 
-rec::Bytes to_bytes(const std::string& s) { return rec::Bytes(s.begin(), s.end()); }
-
 double norm3(const std::array<double, 3>& v) {
   return std::sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]);
 }
@@ -50,10 +44,6 @@ Json mat_json(const Eigen::Matrix3d& m) {
   Json rows = Json::array();
   for (int i = 0; i < 3; ++i) rows.push_back(Json::array({m(i, 0), m(i, 1), m(i, 2)}));
   return rows;
-}
-
-Json pose_json(const dev::ArmPose& p) {
-  return Json{{"x_m", p.x_m}, {"y_m", p.y_m}, {"z_m", p.z_m}, {"yaw_rad", p.yaw_rad}};
 }
 
 std::string_view kSyncSchema =
@@ -111,91 +101,6 @@ std::string_view to_string(SessionState s) {
 
 // ------------------------------------------------------------------------------------------------
 
-struct Session::Impl {
-  Impl(Session& s, Rig& r, SessionOptions o) : self(s), rig(r), opts(std::move(o)) {}
-
-  Session& self;
-  Rig& rig;
-  SessionOptions opts;
-  dev::Clock& clock() { return rig.clock(); }
-
-  // Devices of this session.
-  dev::Trigger* trigger = nullptr;
-  std::vector<dev::Camera*> cameras;
-  dev::ForceTorque* ft = nullptr;
-  dev::Fsr* fsr = nullptr;
-  dev::Arm* arm = nullptr;
-  std::vector<dev::Device*> used;
-
-  std::unique_ptr<Recorder> recorder;
-  std::unique_ptr<Associator> assoc;
-  std::unique_ptr<SafetyMonitor> safety;
-
-  // Channels.
-  std::uint16_t ch_edges = 0, ch_ft = 0, ch_fsr = 0, ch_arm_state = 0, ch_arm_cmd = 0;
-  std::vector<std::uint16_t> ch_cams;
-  std::uint16_t ch_sync = 0, ch_steps = 0, ch_events = 0, ch_truth = 0;
-  bool have_truth = false;
-  std::optional<dev::sim::BoardShow> board_show;  // calibration on a simulated rig
-  std::set<std::string> session_cameras;          // names, for the per-camera truth
-
-  // Control flags (any thread).
-  std::atomic<bool> stop_requested{false};
-  std::atomic<bool> pause_requested{false};
-  std::atomic<bool> estop_requested{false};
-
-  // Loop state (session thread).
-  std::int64_t next_cycle_ns = 0;
-  std::int64_t period_ns = 1'000'000;
-  std::int64_t last_ft_ns = -1;
-  std::int64_t armed_since_ns = -1;  // stall checks run while >= 0
-  std::deque<double> recent_force;
-  std::uint64_t edges_received = 0;
-  std::optional<std::uint64_t> last_edge_index;
-  std::uint64_t arm_command_sequence = 0;
-  std::optional<dev::ArmState> last_arm;
-  std::optional<SafetyTrip> trip;
-  std::string end_reason;
-  std::int64_t last_progress_ns = 0;
-  std::int64_t start_ns = 0;
-  std::int64_t max_cycle_gap_ns = 0;
-  std::int64_t last_cycle_ns = -1;
-
-  // Scratch buffers.
-  std::vector<dev::TriggerEdge> edges_buf;
-  std::vector<dev::Frame> frames_buf;
-  std::vector<dev::WrenchSample> ft_buf;
-  std::vector<dev::FsrSample> fsr_buf;
-  rec::Bytes image_buf;
-
-  // Progress (guarded).
-  mutable std::mutex progress_mutex;
-  Json progress_json = Json::object();
-  std::int64_t done = 0;
-  std::int64_t total = 0;
-  std::string step_text;
-
-  // ---------------------------------------------------------------------------------------------
-  Status setup();
-  Status poll();
-  Status cycle();
-  Status wait_for(const std::function<bool()>& done_pred, std::int64_t timeout_ns,
-                  std::string_view what);
-  Status pause_point();
-  void record_event(std::string_view kind, const std::string& message);
-  void handle_trip(SafetyTrip t);
-  void update_progress(bool force_event);
-  Status run_hand_held();
-  Status run_replay();
-  Status run_automated();
-  Status run_calibration();
-  Status move_to(const dev::ArmPose& pose, double speed);
-  Status fire_and_collect(std::vector<std::uint64_t>& indices, int pulses);
-  double current_force() const;
-  void record_arm_state(const dev::ArmState& s);
-  Json finish(Status run_status);
-};
-
 Status Session::validate(const Rig& rig, const Plan& plan) {
   const auto need = [&](const std::string& name, DeviceKind kind, std::string_view role) -> Status {
     const dev::Device* d = rig.find(name);
@@ -232,6 +137,12 @@ Status Session::validate(const Rig& rig, const Plan& plan) {
   HC_RETURN_IF_ERROR(need(p.force_torque, DeviceKind::kForceTorque, "force_torque"));
   HC_RETURN_IF_ERROR(need(p.arm, DeviceKind::kArm, "arm"));
   HC_RETURN_IF_ERROR(need(p.trigger_device, DeviceKind::kTrigger, "trigger_device"));
+  // The force limits are checked up front like the workspace: a plan that asks for more than the
+  // rig allows is refused, not left to be stopped mid-press.
+  if (p.max_force_n > cfg.max_force_n)
+    return invalid_argument("plan '" + plan.name + "': max_force_n " + num(p.max_force_n) +
+                            " N is above the rig's max_force_n " + num(cfg.max_force_n) + " N (" +
+                            cfg.source_name + ")");
   HC_ASSIGN_OR_RETURN(SafetyLimits limits,
                       combine_limits(cfg.workspace, cfg.max_force_n, cfg.stall_timeout_s,
                                      &p.workspace, &p.max_force_n));
@@ -258,7 +169,10 @@ void Session::estop() {
   // Arm::stop() is safe from any thread; the session loop sees the flag within one cycle and
   // stops the trigger and the protocol too.
   impl_->estop_requested = true;
-  if (impl_->arm != nullptr) (void)impl_->arm->stop();
+  if (impl_->arm != nullptr) {
+    (void)impl_->arm->stop();
+    impl_->estop_stop_ns = impl_->clock().now_ns();
+  }
 }
 
 Json Session::progress() const {
@@ -513,20 +427,6 @@ void Session::Impl::record_event(std::string_view kind, const std::string& messa
   recorder->write(ch_events, now, now, 0,
                   rec::json_message(Json{{"host_ns", now}, {"kind", kind}, {"message", message}}));
   if (opts.on_event) opts.on_event("log", Json{{"kind", kind}, {"message", message}});
-}
-
-void Session::Impl::handle_trip(SafetyTrip t) {
-  if (trip) return;  // the first trip is the one that counts
-  if (arm != nullptr) (void)arm->stop();
-  t.stop_sent_ns = clock().now_ns();
-  if (trigger != nullptr && trigger->state() == dev::DeviceState::kActive) (void)trigger->stop();
-  trip = t;
-  const std::int64_t now = t.stop_sent_ns;
-  Json j = t.to_json();
-  j["host_ns"] = now;
-  j["kind"] = to_string(t.kind);
-  recorder->write(ch_events, now, now, 0, rec::json_message(j));
-  if (opts.on_event) opts.on_event("safety", j);
 }
 
 double Session::Impl::current_force() const {
@@ -806,6 +706,7 @@ Status Session::Impl::fire_and_collect(std::vector<std::uint64_t>& indices, int 
 
 Status Session::Impl::run_automated() {
   const AutomatedPlan& p = opts.plan.automated;
+  HC_RETURN_IF_ERROR(check_start_conditions());
   // Home the arm if needed.
   HC_ASSIGN_OR_RETURN(dev::ArmState st, arm->read());
   record_arm_state(st);
@@ -849,18 +750,29 @@ Status Session::Impl::run_automated() {
       const double level = p.force_levels_n[lv];
       HC_RETURN_IF_ERROR(pause_point());
       HC_RETURN_IF_ERROR(move_to(start, kApproachSpeedMps));
+      safe_pose = start;  // clear of the specimen: where a safety stop retracts to
       double depth = 0.0;
+      // A force the press cannot reach within max_depth_m fails the session (the probe missed
+      // the specimen, or it is softer than the plan assumed); the probe is retracted first.
+      const auto not_reached = [&](const std::string& what) -> Status {
+        const std::string where =
+            "location " + std::to_string(li) + " (" + num(loc.position_m[0] * 1e3) + ", " +
+            num(loc.position_m[1] * 1e3) + ", " + num(loc.position_m[2] * 1e3) + " mm), level " +
+            std::to_string(lv) + " (" + num(level) + " N): ";
+        record_event("not_reached", where + what);
+        HC_RETURN_IF_ERROR(move_to(start, kApproachSpeedMps));
+        return failed_precondition(where + what);
+      };
       // Approach: advance in step_m increments until the probe touches the specimen.
       {
         std::lock_guard lock(progress_mutex);
         step_text = "location " + std::to_string(li + 1) + ": approaching";
       }
       while (current_force() < kContactForceN) {
-        if (depth + p.step_m > p.max_depth_m) {
-          record_event("max_depth",
-                       "location " + std::to_string(li) + ": no contact within max_depth_m");
-          break;
-        }
+        if (depth + p.step_m > p.max_depth_m)
+          return not_reached("no contact within max_depth_m = " + num(p.max_depth_m * 1e3) +
+                             " mm (force " + num(current_force()) +
+                             " N): the probe does not reach the specimen along its direction");
         depth += p.step_m;
         HC_RETURN_IF_ERROR(move_to(at_depth(depth), kPressSpeedMps));
         const std::int64_t t_moved = clock().now_ns();
@@ -879,18 +791,13 @@ Status Session::Impl::run_automated() {
                       "/" + std::to_string(p.force_levels_n.size()) + ", step " +
                       std::to_string(k) + "/" + std::to_string(p.steps);
         }
-        for (int m = 0; m < kMaxSeekMovesPerStep; ++m) {
+        const auto reached = [&] { return current_force() >= target - kStepTolerance * level; };
+        for (int m = 0; m < kMaxSeekMovesPerStep && !reached(); ++m) {
           const double f = current_force();
-          if (f >= target - kStepTolerance * level) break;
           double inc = p.step_m;
           if (f > kContactForceN && stiffness > 0.0) inc = (target - f) / stiffness;
           inc = std::clamp(inc, p.step_m / 20.0, 5.0 * p.step_m);
-          if (depth + inc > p.max_depth_m) {
-            record_event("max_depth", "location " + std::to_string(li) + ": force " +
-                                          std::to_string(f) + " N below the target " +
-                                          std::to_string(target) + " N at max_depth_m");
-            break;
-          }
+          if (depth + inc > p.max_depth_m) break;
           prev_depth = depth;
           prev_force = f;
           depth += inc;
@@ -905,6 +812,11 @@ Status Session::Impl::run_automated() {
           else if (f_new > kContactForceN)
             stiffness = std::max(1.0, f_new / inc);
         }
+        if (!reached())
+          return not_reached("step " + std::to_string(k) + "/" + std::to_string(p.steps) +
+                             ": force " + num(current_force()) + " N below the target " +
+                             num(target) + " N at depth " + num(depth * 1e3) + " mm (max_depth_m " +
+                             num(p.max_depth_m * 1e3) + " mm)");
         if (p.settle_s > 0) {
           const std::int64_t until = clock().now_ns() + static_cast<std::int64_t>(p.settle_s * 1e9);
           HC_RETURN_IF_ERROR(wait_for([&] { return clock().now_ns() >= until; },
@@ -988,6 +900,9 @@ Status Session::Impl::run_replay() {
 Json Session::Impl::finish(Status run_status) {
   // Collect what is still in flight (a last cycle without advancing the protocol), close records.
   if (!trip) (void)poll();
+  // The arm's last state (after a stop: that it stopped, and where).
+  if (arm != nullptr && arm->state() == dev::DeviceState::kActive)
+    if (Result<dev::ArmState> st = arm->read(); st.ok()) record_arm_state(*st);
   for (SyncRecord& r : assoc->take_all()) {
     recorder->write(ch_sync, r.edge_host_ns, r.edge_host_ns,
                     static_cast<std::uint32_t>(r.trigger_index), rec::json_message(r.to_json()));
@@ -1039,6 +954,7 @@ Json Session::Impl::finish(Status run_status) {
                {"control_period_s", rig.config().control_period_s},
                {"max_cycle_gap_ns", max_cycle_gap_ns}};
   if (trip) summary["trip"] = trip->to_json();
+  if (!retract.is_null()) summary["retract"] = retract;
   rec::StringMap session_meta{
       {"state", std::string(to_string(final_state))}, {"reason", reason}, {"json", summary.dump()}};
   recorder->write_metadata(std::string(kMetadataSession), session_meta);
@@ -1081,6 +997,7 @@ Result<Json> Session::run() {
              : m.opts.plan.protocol == Protocol::kHandHeld    ? m.run_hand_held()
              : m.opts.plan.protocol == Protocol::kCalibration ? m.run_calibration()
                                                               : m.run_automated();
+  m.retract_after_trip();
   Json summary = m.finish(s);
   if (m.opts.on_event) m.opts.on_event("finished", summary);
   return summary;

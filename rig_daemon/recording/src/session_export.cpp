@@ -212,6 +212,22 @@ Result<ExportReport> export_channel(const std::filesystem::path& mcap, std::stri
         "foxglove.RawImage / foxglove.CompressedImage frames",
         mcap.string(), topic, channel->message_encoding, schema ? schema->name : ""));
   rep.kind = raw ? "png" : "image";
+  // The frames go to a staging folder first and are moved into out_dir at the end, the index last:
+  // an export that fails or is killed leaves no folder of frames without its index (the staging
+  // folder of a killed run is removed by the next one).
+  remove_stale_temporaries(out_dir);
+  const std::filesystem::path stage = temp_path_for(out_dir / base);
+  std::filesystem::create_directory(stage, ec);
+  if (ec)
+    return io_error(fmt::format("{}: cannot create directory: {}", stage.string(), ec.message()));
+  struct RemoveStage {
+    const std::filesystem::path& dir;
+    ~RemoveStage() {
+      std::error_code e;
+      std::filesystem::remove_all(dir, e);
+    }
+  } remove_stage{stage};
+  std::vector<std::string> staged;
   std::string index =
       "file,log_time_ns,publish_time_ns,sequence,timestamp_ns,width,height,encoding\n";
   Status err;
@@ -270,21 +286,30 @@ Result<ExportReport> export_channel(const std::filesystem::path& mcap, std::stri
       bytes.assign(im->data.begin(), im->data.end());
       line_tail = fmt::format("{},,,{}", im->timestamp_ns, csv_cell(im->format));
     }
-    const auto file = out_dir / name;
-    if (Status s = write_file_atomic(file, bytes); !s.ok()) {
+    if (Status s = write_file_atomic(stage / name, bytes); !s.ok()) {
       err = s;
       return false;
     }
-    rep.files.push_back(file);
+    staged.push_back(name);
     index += fmt::format("{},{},{},{},{}\n", name, e.message.log_time, e.message.publish_time,
                          e.message.sequence, line_tail);
     ++rep.messages;
     return true;
   }));
   HC_RETURN_IF_ERROR(err);
-  const auto file = out_dir / (base + "_frames.csv");
-  HC_RETURN_IF_ERROR(write_file_atomic(file, index));
-  rep.files.push_back(file);
+  staged.push_back(base + "_frames.csv");
+  HC_RETURN_IF_ERROR(write_file_atomic(stage / staged.back(), index));
+  for (const std::string& name : staged) {
+    std::filesystem::rename(stage / name, out_dir / name, ec);
+    if (ec) {
+      const std::string why = ec.message();
+      // Take back what was moved: the frames and their index are there together or not at all.
+      for (const std::filesystem::path& f : rep.files) std::filesystem::remove(f, ec);
+      return io_error(
+          fmt::format("{}: cannot move {} into place: {}", out_dir.string(), name, why));
+    }
+    rep.files.push_back(out_dir / name);
+  }
   return rep;
 }
 

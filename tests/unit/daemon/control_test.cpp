@@ -1,12 +1,19 @@
-// The control protocol (strict decoding, round trips) and the control socket (0600, request /
-// response, events, a stale socket replaced, a live one refused).
+// The control protocol (strict decoding, round trips, line framing) and the control socket (0600,
+// request / response, events, a stale socket replaced, a live one refused, half-closed clients
+// answered, idle connections closed, estop served past the connection limit).
 #include <gtest/gtest.h>
 #include <sys/stat.h>
 
+#include <algorithm>
 #include <atomic>
 #include <fstream>
+#include <memory>
+#include <mutex>
 #include <string>
+#include <thread>
+#include <vector>
 
+#include "raw_client.h"
 #include "rig_daemon/daemon/control_protocol.h"
 #include "rig_daemon/daemon/control_socket.h"
 #include "test_data.h"
@@ -31,8 +38,8 @@ TEST(ControlProtocol, RequestRoundTrip) {
 }
 
 TEST(ControlProtocol, EveryCommandRoundTrips) {
-  for (const char* name :
-       {"status", "devices", "pause", "resume", "stop", "estop", "subscribe", "shutdown"}) {
+  for (const char* name : {"status", "devices", "pause", "resume", "stop", "estop", "reset",
+                           "subscribe", "shutdown"}) {
     std::optional<Command> c = command_from_string(name);
     ASSERT_TRUE(c) << name;
     EXPECT_EQ(to_string(*c), name);
@@ -193,6 +200,170 @@ TEST(ControlSocket, StaleSocketFileIsReplacedButOtherFilesAreNot) {
       ControlServer::start(regular, [](const Request&, Status&) { return Json{}; });
   EXPECT_FALSE(refused.ok());
   EXPECT_TRUE(std::filesystem::exists(regular));
+}
+
+TEST(ControlProtocol, FramerYieldsEveryCompleteLineAndTheRestAtEndOfFile) {
+  RequestFramer f(64);
+  f.append("{\"cmd\":\"status\"}\n\r\n\n{\"cmd\":\"pa");
+  EXPECT_EQ(f.next(), std::optional<std::string>("{\"cmd\":\"status\"}"));
+  EXPECT_EQ(f.next(), std::nullopt);  // blank lines skipped, the partial one waits
+  f.append("use\"}\r\n{\"cmd\":\"estop\"}");
+  EXPECT_EQ(f.next(), std::optional<std::string>("{\"cmd\":\"pause\"}\r"));
+  EXPECT_EQ(f.next(), std::nullopt);
+  EXPECT_FALSE(f.drained());
+  // The client half-closes: its unterminated last request is still a request (before the fix
+  // end-of-file dropped everything buffered, the estop included).
+  f.finish();
+  EXPECT_EQ(f.next(), std::optional<std::string>("{\"cmd\":\"estop\"}"));
+  EXPECT_EQ(f.next(), std::nullopt);
+  EXPECT_TRUE(f.drained());
+
+  RequestFramer g(16);
+  g.append("{\"cmd\":\"estop\"}\n");
+  g.append(std::string(40, 'x'));
+  EXPECT_EQ(g.next(), std::optional<std::string>("{\"cmd\":\"estop\"}"));  // before the long one
+  EXPECT_EQ(g.next(), std::nullopt);
+  EXPECT_TRUE(g.overlong());
+  EXPECT_TRUE(g.drained());
+}
+
+// A server whose handler answers every command with its name and counts the calls.
+struct CountingServer {
+  explicit CountingServer(const std::filesystem::path& path, ControlServer::Limits limits = {}) {
+    Result<std::unique_ptr<ControlServer>> s = ControlServer::start(
+        path,
+        [this](const Request& r, Status&) -> Json {
+          std::lock_guard lock(mutex);
+          commands.push_back(std::string(to_string(r.command)));
+          return Json{{"cmd", to_string(r.command)}};
+        },
+        limits);
+    EXPECT_TRUE(s.ok()) << s.status().to_string();
+    if (s.ok()) server = std::move(s).value();
+  }
+  std::vector<std::string> seen() {
+    std::lock_guard lock(mutex);
+    return commands;
+  }
+  std::mutex mutex;
+  std::vector<std::string> commands;
+  std::unique_ptr<ControlServer> server;
+};
+
+std::size_t count_of(const std::string& text, const std::string& what) {
+  std::size_t n = 0;
+  for (std::size_t at = text.find(what); at != std::string::npos; at = text.find(what, at + 1)) ++n;
+  return n;
+}
+
+TEST(ControlSocket, HalfClosedClientGetsEveryRequestExecutedAndAnswered) {
+  hc::testing::ScratchDir dir;
+  CountingServer srv(dir / "rigd.sock");
+  ASSERT_TRUE(srv.server);
+  // `echo '{"id":1,"cmd":"estop"}' | socat - UNIX-CONNECT:rigd.sock`, 20 times: every one runs and
+  // is answered (before the fix: no reply and the command dropped, most of the time).
+  for (int i = 0; i < 20; ++i) {
+    hc::testing::RawClient c(srv.server->path());
+    ASSERT_TRUE(c.connected());
+    ASSERT_TRUE(c.send("{\"id\":" + std::to_string(i + 1) + ",\"cmd\":\"estop\"}\n"));
+    c.shutdown_write();
+    bool closed = false;
+    const std::string reply = c.read_until_closed(5000, &closed);
+    EXPECT_TRUE(closed);
+    EXPECT_NE(reply.find("\"id\":" + std::to_string(i + 1) + ",\"ok\":true"), std::string::npos)
+        << i << ": " << reply;
+  }
+  const std::vector<std::string> seen = srv.seen();
+  EXPECT_EQ(std::count(seen.begin(), seen.end(), "estop"), 20);
+
+  // Three requests in one write, the last one unterminated, then end-of-file: three answers.
+  hc::testing::RawClient c(srv.server->path());
+  ASSERT_TRUE(
+      c.send("{\"id\":7,\"cmd\":\"status\"}\n{\"id\":8,\"cmd\":\"pause\"}\r\n"
+             "{\"id\":9,\"cmd\":\"estop\"}"));
+  c.shutdown_write();
+  const std::string replies = c.read_until_closed(5000);
+  EXPECT_EQ(count_of(replies, "\"ok\":true"), 3u) << replies;
+  EXPECT_NE(replies.find("\"id\":9"), std::string::npos) << replies;
+}
+
+TEST(ControlSocket, IdleConnectionsAreClosedWithAReason) {
+  hc::testing::ScratchDir dir;
+  ControlServer::Limits limits;
+  limits.idle_timeout = std::chrono::milliseconds(300);
+  CountingServer srv(dir / "rigd.sock", limits);
+  ASSERT_TRUE(srv.server);
+  hc::testing::RawClient idle(srv.server->path());
+  ASSERT_TRUE(idle.connected());
+  bool closed = false;
+  const std::string said = idle.read_until_closed(5000, &closed);
+  EXPECT_TRUE(closed);
+  EXPECT_NE(said.find("no request for 300 ms; closing this control connection"), std::string::npos)
+      << said;
+  // A subscriber waits for events as long as it likes.
+  Result<ControlClient> watcher = ControlClient::connect(srv.server->path());
+  ASSERT_TRUE(watcher.ok());
+  Request sub;
+  sub.command = Command::kSubscribe;
+  ASSERT_TRUE(watcher->call(sub).ok());
+  std::this_thread::sleep_for(std::chrono::milliseconds(600));
+  srv.server->broadcast("progress", Json{{"done", 1}});
+  EXPECT_TRUE(watcher->next_event(5000).ok());
+}
+
+TEST(ControlSocket, EstopGetsThroughWhenEveryConnectionIsTaken) {
+  hc::testing::ScratchDir dir;
+  ControlServer::Limits limits;
+  limits.max_connections = 6;
+  limits.reserved_connections = 2;
+  CountingServer srv(dir / "rigd.sock", limits);
+  ASSERT_TRUE(srv.server);
+  std::vector<std::unique_ptr<hc::testing::RawClient>> idle;
+  for (std::size_t i = 0; i < limits.max_connections; ++i) {
+    idle.push_back(std::make_unique<hc::testing::RawClient>(srv.server->path()));
+    ASSERT_TRUE(idle.back()->connected());
+  }
+  for (int i = 0; i < 200 && srv.server->connections() < limits.max_connections; ++i)
+    std::this_thread::sleep_for(std::chrono::milliseconds(5));
+  ASSERT_EQ(srv.server->connections(), limits.max_connections);
+
+  // Another status: refused, saying why (before the fix: "Connection reset by peer").
+  Result<ControlClient> extra = ControlClient::connect(srv.server->path());
+  ASSERT_TRUE(extra.ok());
+  Request status;
+  status.command = Command::kStatus;
+  Result<Json> refused = extra->call(status, 5000);
+  ASSERT_FALSE(refused.ok());
+  EXPECT_EQ(refused.status().code(), StatusCode::kUnavailable);
+  EXPECT_NE(refused.status().message().find("all 6 control connections are in use; this extra "
+                                            "connection serves only estop"),
+            std::string::npos)
+      << refused.status().message();
+  // Estop is served (twice: each reserved connection takes one request).
+  for (int i = 0; i < 2; ++i) {
+    Result<ControlClient> e = ControlClient::connect(srv.server->path());
+    ASSERT_TRUE(e.ok());
+    Request estop;
+    estop.command = Command::kEstop;
+    Result<Json> r = e->call(estop, 5000);
+    ASSERT_TRUE(r.ok()) << r.status().to_string();
+    EXPECT_EQ((*r)["cmd"], "estop");
+  }
+  const std::vector<std::string> seen = srv.seen();
+  EXPECT_EQ(std::count(seen.begin(), seen.end(), "estop"), 2);
+  EXPECT_EQ(std::count(seen.begin(), seen.end(), "status"), 0);
+
+  // Past the reserve too: a message, not a bare reset.
+  std::vector<std::unique_ptr<hc::testing::RawClient>> more;
+  for (std::size_t i = 0; i < limits.reserved_connections; ++i)
+    more.push_back(std::make_unique<hc::testing::RawClient>(srv.server->path()));
+  std::this_thread::sleep_for(std::chrono::milliseconds(300));
+  hc::testing::RawClient last(srv.server->path());
+  ASSERT_TRUE(last.connected());
+  const std::string said = last.read_until_closed(5000);
+  EXPECT_NE(said.find("control connections are in use, including the ones kept for estop"),
+            std::string::npos)
+      << said;
 }
 
 }  // namespace

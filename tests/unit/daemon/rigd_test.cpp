@@ -12,11 +12,14 @@
 
 #include <chrono>
 #include <fstream>
+#include <memory>
 #include <string>
 #include <thread>
+#include <vector>
 
 #include "cli_run.h"
 #include "common/json.h"
+#include "raw_client.h"
 #include "rig_daemon/daemon/plan.h"
 #include "rig_daemon/recording/mcap_reader.h"
 #include "session_support.h"
@@ -234,6 +237,117 @@ TEST(Rigd, KillNineMidCaptureThenRecoverAndVerify) {
   EXPECT_GT(c.by_topic.count("/cam0/image"), 0u);
   EXPECT_TRUE(c.metadata.count("rig_config"));
   EXPECT_TRUE(c.metadata.count("plan"));
+}
+
+// The state of rigd's running or last session, from `rigctl status --json`.
+Json status_of(const Rigd& rigd) {
+  CmdResult st = run_json(rigd.rigctl("status --json"));
+  Result<Json> j = parse_json(st.out, "status");
+  return j.ok() ? *j : Json();
+}
+
+TEST(Rigd, EstopFromAHalfClosedClientStopsTheCapture) {
+  ScratchDir dir;
+  Rigd rigd(dir.path());
+  ASSERT_TRUE(std::filesystem::exists(rigd.socket()));
+  // The socket file exists from bind(); wait until rigd answers.
+  for (int i = 0; i < 200 && !status_of(rigd).contains("daemon"); ++i)
+    std::this_thread::sleep_for(std::chrono::milliseconds(25));
+  // Requests from clients that write one line and half-close (`echo ... | socat - UNIX-CONNECT:`)
+  // are all answered (before the fix: status 18/20).
+  for (int i = 0; i < 20; ++i) {
+    hc::testing::RawClient c(rigd.socket());
+    ASSERT_TRUE(c.send("{\"id\":1,\"cmd\":\"status\"}\n"));
+    c.shutdown_write();
+    EXPECT_NE(c.read_until_closed(5000).find("\"ok\":true"), std::string::npos) << i;
+  }
+  ASSERT_EQ(run_json(rigd.rigctl("start " + example("automated_block.yaml"))).exit_code, 0);
+  for (int i = 0; i < 400 && status_of(rigd).value("state", std::string()) != "running"; ++i)
+    std::this_thread::sleep_for(std::chrono::milliseconds(25));
+  // Estop the same way, mid-capture (before the fix: ignored 5/5, the capture kept running).
+  hc::testing::RawClient c(rigd.socket());
+  ASSERT_TRUE(c.send("{\"id\":1,\"cmd\":\"estop\"}\n"));
+  c.shutdown_write();
+  const std::string reply = c.read_until_closed(5000);
+  EXPECT_NE(reply.find("\"session_aborted\":true"), std::string::npos) << reply;
+  Json st;
+  for (int i = 0; i < 400; ++i) {
+    st = status_of(rigd);
+    if (st.value("state", std::string()) == "idle" && st.contains("last_session")) break;
+    std::this_thread::sleep_for(std::chrono::milliseconds(25));
+  }
+  ASSERT_TRUE(st.contains("last_session")) << st.dump(2);
+  EXPECT_EQ(st["last_session"]["state"], "aborted") << st.dump(2);
+  EXPECT_EQ(st["last_session"]["trip"]["kind"], "estop");
+  // Starts wait for `rigctl reset`, and the refusal says so.
+  CmdResult again = run(rigd.rigctl("start " + example("automated_block.yaml")));
+  EXPECT_EQ(again.exit_code, 1) << again.out;
+  EXPECT_NE(again.out.find("safety stop (estop"), std::string::npos) << again.out;
+  EXPECT_NE(again.out.find("rigctl reset"), std::string::npos) << again.out;
+  EXPECT_EQ(run(rigd.rigctl("reset")).exit_code, 0);
+  EXPECT_FALSE(status_of(rigd).contains("safety_stop"));
+}
+
+TEST(Rigd, SixtyFourIdleClientsDoNotLockOutEstop) {
+  ScratchDir dir;
+  Rigd rigd(dir.path());
+  ASSERT_TRUE(std::filesystem::exists(rigd.socket()));
+  for (int i = 0; i < 200 && !status_of(rigd).contains("daemon"); ++i)
+    std::this_thread::sleep_for(std::chrono::milliseconds(25));
+  std::vector<std::unique_ptr<hc::testing::RawClient>> idle;
+  for (int i = 0; i < 64; ++i) {
+    idle.push_back(std::make_unique<hc::testing::RawClient>(rigd.socket()));
+    ASSERT_TRUE(idle.back()->connected()) << i;
+  }
+  std::this_thread::sleep_for(std::chrono::milliseconds(300));  // rigd accepts them all
+  // Estop gets through at once (before the fix: blocked, "Connection reset by peer").
+  const auto t0 = std::chrono::steady_clock::now();
+  CmdResult estop = run(rigd.rigctl("estop"));
+  const double estop_s =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  EXPECT_EQ(estop.exit_code, 0) << estop.out;
+  EXPECT_NE(estop.out.find("estop: arms stopped"), std::string::npos) << estop.out;
+  EXPECT_LT(estop_s, 5.0);
+  // Status is refused, saying why.
+  CmdResult status = run(rigd.rigctl("status"));
+  EXPECT_EQ(status.exit_code, 1) << status.out;
+  EXPECT_NE(status.out.find("all 64 control connections are in use"), std::string::npos)
+      << status.out;
+  // With the idle clients gone, everything is served again.
+  idle.clear();
+  std::this_thread::sleep_for(std::chrono::milliseconds(300));
+  EXPECT_EQ(run(rigd.rigctl("status")).exit_code, 0);
+  EXPECT_EQ(run(rigd.rigctl("reset")).exit_code, 0);
+}
+
+TEST(Rigd, UnsafeOrUnreachablePlansExitNonZero) {
+  ScratchDir dir;
+  Rigd rigd(dir.path());
+  ASSERT_TRUE(std::filesystem::exists(rigd.socket()));
+  const std::string base = R"(protocol: automated
+name: probe
+force_levels_n: [20]
+steps: 30
+settle_s: 0
+workspace: {min_m: [-0.05, -0.05, 0.0], max_m: [0.05, 0.05, 0.12]}
+cameras: [cam0]
+)";
+  // Above the rig's 50 N: refused up front (exit 2: the plan is bad for this rig).
+  const std::filesystem::path strong = dir / "strong.yaml";
+  std::ofstream(strong) << base << "max_force_n: 80\nlocations: [{position_m: [0, 0, 0.062]}]\n";
+  CmdResult s = run(rigd.rigctl("start --wait " + strong.string()));
+  EXPECT_EQ(s.exit_code, 2) << s.out;
+  EXPECT_NE(s.out.find("above the rig's max_force_n"), std::string::npos) << s.out;
+  // Pressing upwards never touches the specimen: the session fails and rigctl says so (before
+  // the fix: "completed", exit 0).
+  const std::filesystem::path up = dir / "up.yaml";
+  std::ofstream(up) << base
+                    << "max_force_n: 40\nmax_depth_m: 0.01\n"
+                       "locations: [{position_m: [0, 0, 0.062], direction: [0, 0, 1]}]\n";
+  CmdResult u = run(rigd.rigctl("start --wait " + up.string()));
+  EXPECT_EQ(u.exit_code, 1) << u.out;
+  EXPECT_NE(u.out.find("state     failed"), std::string::npos) << u.out;
+  EXPECT_NE(u.out.find("no contact within max_depth_m"), std::string::npos) << u.out;
 }
 
 }  // namespace

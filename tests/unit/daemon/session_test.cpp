@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <optional>
 
 #include <Eigen/Core>
 
@@ -198,14 +199,20 @@ TEST(Safety, StalledForceStreamStopsTheArm) {
             devices::ArmMotion::kStopped);
 }
 
-TEST(Safety, EstopAlwaysWorks) {
+TEST(Safety, EstopAlwaysWorksAndTheFileShowsTheArmStopped) {
   ScratchDir dir;
   auto d = make_daemon(dir.path());
-  // With nothing running: the arm is stopped and that is not an error.
+  // With nothing running: the arm is stopped and that is not an error; starts are refused until
+  // reset.
   Json idle = d->estop();
   EXPECT_FALSE(idle["session_aborted"].get<bool>());
   ASSERT_EQ(idle["arms"].size(), 1u);
   EXPECT_TRUE(idle["arms"][0]["ok"].get<bool>()) << idle.dump();
+  Result<Json> refused = d->start(short_plan());
+  ASSERT_FALSE(refused.ok());
+  EXPECT_NE(refused.status().message().find("safety stop (estop"), std::string::npos)
+      << refused.status().message();
+  ASSERT_TRUE(d->reset().ok());
   // During a session: aborted, marked, arm stopped.
   ASSERT_TRUE(d->start(short_plan()).ok());
   Json during = d->estop();
@@ -214,8 +221,139 @@ TEST(Safety, EstopAlwaysWorks) {
   Json s = d->last_summary();
   EXPECT_EQ(s["state"], "aborted") << s.dump(2);
   EXPECT_EQ(s["trip"]["kind"], "estop");
+  EXPECT_FALSE(s.contains("retract"));  // nothing moves after an estop
   EXPECT_EQ(d->rig().world()->arm_state(d->rig().clock().now_ns()).motion,
             devices::ArmMotion::kStopped);
+  EXPECT_EQ(d->status()["safety_stop"]["kind"], "estop");
+  // The session proves what the arm did: a stop command on /arm/command and, after it, the arm's
+  // state saying it stopped (before the fix: neither).
+  const testing::SessionContents c = read_session(s["session"].get<std::string>());
+  std::optional<std::uint64_t> stop_time;
+  for (const testing::Msg& m : c.by_topic.at(arm_command_topic("arm")))
+    if (json_of(m)["type"] == "stop") stop_time = m.log_time;
+  ASSERT_TRUE(stop_time) << "no stop command recorded";
+  bool stopped_after = false;
+  for (const testing::Msg& m : c.by_topic.at(arm_state_topic("arm")))
+    stopped_after =
+        stopped_after || (m.log_time >= *stop_time && json_of(m)["motion"] == "stopped");
+  EXPECT_TRUE(stopped_after);
+}
+
+TEST(Safety, OverForceStopRetractsAndStartsWaitForReset) {
+  ScratchDir dir;
+  auto d = make_daemon(dir.path());
+  // 100 N on the F/T sensor for 60 ms mid-press (simulated time starts at 1 s).
+  d->rig().world()->inject(
+      Fault{Fault::Kind::kSpike, "ft", 3'200'000'000, 3'260'000'000, 1.0, 100.0});
+  const Plan plan = short_plan();
+  Json s = run_plan(*d, plan);
+  ASSERT_EQ(s["state"], "aborted") << s.dump(2);
+  EXPECT_EQ(s["trip"]["kind"], "over_force");
+  ASSERT_TRUE(s.contains("retract")) << s.dump(2);
+  EXPECT_TRUE(s["retract"]["ok"].get<bool>()) << s["retract"].dump();
+  // Back at the press's start pose, out of contact (before the fix the probe stayed pressed in).
+  const std::int64_t now = d->rig().clock().now_ns();
+  const devices::ArmState arm = d->rig().world()->arm_state(now);
+  EXPECT_NEAR(arm.pose.z_m, plan.automated.locations[0].position_m[2], 1e-9);
+  EXPECT_LT(d->rig().world()->true_force_n(now), 0.2);
+  // The file shows the press, the stop and the retract: the deepest recorded pose is below the
+  // start, the last one at it.
+  const testing::SessionContents c = read_session(s["session"].get<std::string>());
+  double deepest = 1.0;
+  for (const testing::Msg& m : c.by_topic.at(arm_state_topic("arm")))
+    deepest = std::min(deepest, json_of(m)["pose"]["z_m"].get<double>());
+  EXPECT_LT(deepest, plan.automated.locations[0].position_m[2] - 0.001);
+  const Json last = json_of(c.by_topic.at(arm_state_topic("arm")).back());
+  EXPECT_NEAR(last["pose"]["z_m"].get<double>(), plan.automated.locations[0].position_m[2], 1e-9);
+
+  // Latched: the next start is refused, naming the stop, until reset; then it runs through.
+  Result<Json> refused = d->start(plan);
+  ASSERT_FALSE(refused.ok());
+  EXPECT_EQ(refused.status().code(), StatusCode::kFailedPrecondition);
+  EXPECT_NE(refused.status().message().find("safety stop (over_force"), std::string::npos)
+      << refused.status().message();
+  Result<Json> reset = d->reset();
+  ASSERT_TRUE(reset.ok()) << reset.status().to_string();
+  EXPECT_EQ((*reset)["cleared"]["kind"], "over_force");
+  EXPECT_TRUE(d->status()["safety_stop"].is_null());
+  Json again = run_plan(*d, plan);
+  EXPECT_EQ(again["state"], "finished") << again.dump(2);
+}
+
+TEST(Safety, StartIsRefusedWhileTheForceIsHighOrTheArmInFault) {
+  ScratchDir dir;
+  auto d = make_daemon(dir.path());
+  devices::sim::World& world = *d->rig().world();
+  // A probe left pressing with 5 N (as after an estop mid-press): refused before anything moves,
+  // not tared away (before the fix: tared, then over-force within 70 ms of moving).
+  world.inject(Fault{Fault::Kind::kSpike, "ft", 0, INT64_MAX, 1.0, 5.0});
+  Json s = run_plan(*d, short_plan());
+  ASSERT_EQ(s["state"], "aborted") << s.dump(2);
+  EXPECT_EQ(s["trip"]["kind"], "start_check");
+  EXPECT_NE(s["trip"]["message"].get<std::string>().find("above start_max_force_n 2 N"),
+            std::string::npos)
+      << s["trip"].dump();
+  const testing::SessionContents c = read_session(s["session"].get<std::string>());
+  for (const testing::Msg& m : c.by_topic.at(arm_command_topic("arm")))
+    EXPECT_EQ(json_of(m)["type"], "stop");  // nothing was moved
+  ASSERT_TRUE(d->reset().ok());
+  world.clear_faults();
+
+  // The arm in fault: refused; reset cannot clear it while the fault lasts, then it can.
+  world.inject(Fault{Fault::Kind::kStall, "arm", 0, INT64_MAX, 1.0, 0.0});
+  s = run_plan(*d, short_plan());
+  ASSERT_EQ(s["state"], "aborted") << s.dump(2);
+  EXPECT_NE(s["trip"]["message"].get<std::string>().find("is in fault"), std::string::npos)
+      << s["trip"].dump();
+  Result<Json> reset = d->reset();
+  ASSERT_FALSE(reset.ok());
+  EXPECT_NE(reset.status().message().find("still in fault"), std::string::npos)
+      << reset.status().message();
+  world.clear_faults();
+  ASSERT_TRUE(d->reset().ok());
+  EXPECT_EQ(run_plan(*d, short_plan())["state"], "finished");
+}
+
+TEST(Safety, PlanAboveTheRigsForceLimitIsRefusedUpFront) {
+  ScratchDir dir;
+  auto d = make_daemon(dir.path());  // the embedded default: max_force_n 50
+  Plan p = short_plan();
+  p.automated.max_force_n = 80;
+  p.automated.force_levels_n = {70};
+  Result<Json> r = d->start(p);
+  ASSERT_FALSE(r.ok());
+  EXPECT_EQ(r.status().code(), StatusCode::kInvalidArgument);
+  EXPECT_NE(r.status().message().find("max_force_n 80 N is above the rig's max_force_n 50 N"),
+            std::string::npos)
+      << r.status().message();
+  EXPECT_EQ(d->status()["sessions_started"], 0);
+}
+
+TEST(Safety, AForceNotReachedWithinMaxDepthFailsTheSession) {
+  ScratchDir dir;
+  auto d = make_daemon(dir.path());
+  // Pressing away from the specimen: no contact within max_depth_m (before the fix: 30 steps at
+  // ~0.06 N recorded and the session "completed").
+  Plan up = short_plan();
+  up.automated.locations[0].direction = {0, 0, 1};
+  Json s = run_plan(*d, up);
+  EXPECT_EQ(s["state"], "failed") << s.dump(2);
+  EXPECT_NE(s["reason"].get<std::string>().find("no contact within max_depth_m = 30 mm"),
+            std::string::npos)
+      << s["reason"];
+  EXPECT_EQ(s["association"]["edges"], 0);
+  // The probe is back at its start.
+  const devices::ArmState arm = d->rig().world()->arm_state(d->rig().clock().now_ns());
+  EXPECT_NEAR(arm.pose.z_m, up.automated.locations[0].position_m[2], 1e-9);
+
+  // Touching, but the level is out of reach within max_depth_m (the surface is 12 mm below the
+  // start: 1 mm into it is not enough for 30 N).
+  Plan shallow = short_plan();
+  shallow.automated.max_depth_m = 0.013;
+  s = run_plan(*d, shallow);
+  EXPECT_EQ(s["state"], "failed") << s.dump(2);
+  EXPECT_NE(s["reason"].get<std::string>().find("below the target"), std::string::npos)
+      << s["reason"];
 }
 
 TEST(Safety, WorkspaceViolationsAreRejected) {

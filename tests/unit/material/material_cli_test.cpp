@@ -102,5 +102,36 @@ TEST(MaterialCli, BadInputExitsTwoAndWritesNothing) {
   EXPECT_EQ(hardcopy("synth " + d + "/scene.json -o " + d + "/s.json --examples 0").exit_code, 2);
 }
 
+TEST(MaterialCli, OutOfRangeOptionsNameTheRealProblem) {
+  // Before: --noise 1e308 wrote positions of ~1e305 m ("max displacement inf", exit 0);
+  // --examples 100000000 was accepted and failed after 87 s; --regularization inf said "must be
+  // >= 0". Now each is refused at once, naming what is wrong, and nothing is written.
+  hc::testing::ScratchDir dir;
+  const std::string d = dir.path().string();
+  std::ofstream(dir / "scene.json")
+      << R"({"specimen": {"box_m": [0.04, 0.04, 0.02], "cells": [2, 2, 1]},
+    "material": {"neo_hookean": {"youngs_pa": 60000, "poisson": 0.3}},
+    "fixed": "bottom",
+    "probe": {"shape": "sphere", "radius_m": 0.01, "position_m": [0.02, 0.02, 0.03],
+              "direction": [0, 0, -1]}, "load": {"force_n": 1.0}})";
+  // stderr too: the messages are the point.
+  const auto with_stderr = [](const std::string& args) {
+    return hc::testing::run_command((hc::testing::bin_dir() / "hardcopy").string() + " --quiet " +
+                                    args + " 2>&1");
+  };
+  const std::string synth = "synth " + d + "/scene.json -o " + d + "/s.json ";
+  CliRun n = with_stderr(synth + "--noise 1e308");
+  EXPECT_EQ(n.exit_code, 2) << n.out;
+  EXPECT_NE(n.out.find("--noise 1e+308: must be in [0, 10]"), std::string::npos) << n.out;
+  CliRun e = with_stderr(synth + "--examples 100000000");
+  EXPECT_EQ(e.exit_code, 2) << e.out;
+  EXPECT_NE(e.out.find("--examples 100000000: must be in [1, 10000]"), std::string::npos) << e.out;
+  EXPECT_FALSE(std::filesystem::exists(dir / "s.json"));
+  CliRun g = with_stderr("fit heterogeneous --samples " + d + "/s.json -o " + d +
+                         "/m.json --regularization inf");
+  EXPECT_EQ(g.exit_code, 2) << g.out;
+  EXPECT_NE(g.out.find("must be a finite number, got inf"), std::string::npos) << g.out;
+}
+
 }  // namespace
 }  // namespace hc::material

@@ -4,6 +4,7 @@
 #include <sys/wait.h>
 
 #include <array>
+#include <chrono>
 #include <cstdio>
 #include <nlohmann/json.hpp>
 #include <string>
@@ -121,6 +122,43 @@ TEST(TetmeshCli, BadInputExitsTwoAndWritesNothing) {
   EXPECT_FALSE(std::filesystem::exists(dir / "x.node"));
   EXPECT_FALSE(std::filesystem::exists(dir / "x.vtu"));
   EXPECT_EQ(hardcopy("tetmesh --help").exit_code, 0);
+}
+
+TEST(TetmeshCli, UnmeetableQualityAndVolumeAreRefusedUpFront) {
+  // Before the fix --quality 1.00-1.03 passed validation and TetGen never finished (1 GB after
+  // 30 s); --max-volume 1e-15 ran unbounded. Both are refused at once now, naming the option.
+  ScratchDir dir;
+  const std::string in = shared_data("meshes/pinion.off").string() + " -o " + (dir / "x").string();
+  const auto tetmesh = [](const std::string& args) {  // with stderr: the messages are the point
+    return run_command((bin_dir() / "hardcopy").string() + " --quiet tetmesh " + args + " 2>&1");
+  };
+  const auto t0 = std::chrono::steady_clock::now();
+  CliRun q = tetmesh(in + " --quality 1.02");
+  EXPECT_EQ(q.exit_code, 2) << q.out;
+  EXPECT_NE(q.out.find("must be 0 (off) or >= 1.1"), std::string::npos) << q.out;
+  CliRun v = tetmesh(in + " --max-volume 1e-15");
+  EXPECT_EQ(v.exit_code, 2) << v.out;
+  EXPECT_NE(v.out.find("more than --max-tets 5000000"), std::string::npos) << v.out;
+  EXPECT_LT(std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count(), 20.0);
+  // The point budget bounds what the estimate cannot see: a tight quality on a small limit.
+  CliRun b = tetmesh(in + " --quality 1.1 --max-tets 2000");
+  EXPECT_EQ(b.exit_code, 2) << b.out;
+  EXPECT_NE(b.out.find("TetGen used all 400 points that --max-tets 2000 allows"), std::string::npos)
+      << b.out;
+  for (const auto& e : std::filesystem::directory_iterator(dir.path())) ADD_FAILURE() << e.path();
+}
+
+TEST(TetmeshCli, OutputFilesAppearTogetherOrNotAtAll) {
+  ScratchDir dir;
+  // OUT.vtu cannot be written (a folder is in the way): before the fix OUT.node and OUT.ele were
+  // left without it; now none of the three appears, and no temporary is left.
+  std::filesystem::create_directory(dir / "x.vtu");
+  CliRun r = hardcopy("tetmesh --box 0.01 0.01 0.01 --cells 2 2 2 -o " + (dir / "x").string());
+  EXPECT_EQ(r.exit_code, 2) << r.out;
+  EXPECT_FALSE(std::filesystem::exists(dir / "x.node"));
+  EXPECT_FALSE(std::filesystem::exists(dir / "x.ele"));
+  for (const auto& e : std::filesystem::directory_iterator(dir.path()))
+    EXPECT_EQ(e.path().filename().string().find(".tmp-"), std::string::npos) << e.path();
 }
 
 }  // namespace

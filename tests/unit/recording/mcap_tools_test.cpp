@@ -2,6 +2,8 @@
 // chunks, corrupted CRCs and indexes, device stats, CSV and PNG export.
 #include <gtest/gtest.h>
 #include <png.h>
+#include <sys/wait.h>
+#include <unistd.h>
 
 #include <fstream>
 #include <iterator>
@@ -209,6 +211,130 @@ TEST(McapRecover, DropsCorruptChunkAndRefusesNonMcap) {
   EXPECT_FALSE(recover(dir / "s.mcap", dir / "s.mcap", {}).ok());  // in place is refused
 }
 
+TEST(McapRecover, CorruptFirstChunkLosesOnlyItsOwnMessages) {
+  // The first chunk holds every Schema and Channel record; the summary section repeats them. One
+  // flipped byte in the first chunk must cost that chunk's messages only (before the fix every
+  // later message was dropped: "their channel definition was lost").
+  ScratchDir dir;
+  write_session(dir / "s.mcap", Compression::kNone, 3000);
+  Bytes full = read_all(dir / "s.mcap");
+  auto reader = McapReader::open(dir / "s.mcap");
+  ASSERT_TRUE(reader.ok());
+  ASSERT_GE(reader->summary().chunk_indexes.size(), 4u);
+  const auto ci = reader->summary().chunk_indexes[0];
+  std::uint64_t lost = 0;
+  const auto indexes = reader->read_message_indexes(ci);
+  ASSERT_TRUE(indexes.ok());
+  for (const auto& mi : *indexes) lost += mi.records.size();
+  ASSERT_GT(lost, 0u);
+  full[ci.chunk_start_offset + ci.chunk_length - 10] ^= 0x01;  // one bit of chunk 0's payload
+  write_all(dir / "bad.mcap", full);
+  auto rep = recover(dir / "bad.mcap", dir / "rec.mcap", {});
+  ASSERT_TRUE(rep.ok()) << rep.status().to_string();
+  EXPECT_EQ(rep->chunks_dropped, 1u);
+  EXPECT_EQ(rep->messages_dropped, 0u);
+  EXPECT_EQ(rep->messages_kept, kForce + kFrames - lost);
+  EXPECT_EQ(count_messages(dir / "rec.mcap"), kForce + kFrames - lost);
+  auto v = verify(dir / "rec.mcap");
+  ASSERT_TRUE(v.ok());
+  EXPECT_TRUE(v->ok);
+}
+
+TEST(McapRecover, DefinitionsFromALaterChunkOfACutFile) {
+  // No summary (cut by a crash), the first chunk corrupt, the definitions repeated in the third
+  // chunk only: the second chunk's messages are kept too.
+  const Schema schema{1, "hardcopy.Force", std::string(kJsonSchemaEncoding), Bytes{'{', '}'}};
+  const Channel channel{3, 1, "/ft/wrench", std::string(kJsonEncoding), {}};
+  const auto chunk = [&](bool with_definitions, std::uint64_t t0) {
+    Bytes records;
+    if (with_definitions) {
+      encode(schema, records);
+      encode(channel, records);
+    }
+    for (std::uint64_t i = 0; i < 5; ++i) {
+      const Bytes data = json_message(Json{{"fz", double(t0 + i)}});
+      encode_message(3, static_cast<std::uint32_t>(t0 + i), t0 + i, t0 + i, data, records);
+    }
+    Chunk c;
+    c.message_start_time = t0;
+    c.message_end_time = t0 + 4;
+    c.uncompressed_size = records.size();
+    c.uncompressed_crc = crc32(records);
+    c.records = records;
+    Bytes out;
+    encode(c, out);
+    return out;
+  };
+  Bytes file(kMagic.begin(), kMagic.end());
+  encode(Header{"", "test"}, file);
+  Bytes first = chunk(true, 100);
+  first[first.size() - 3] ^= 0x01;  // CRC mismatch
+  for (const Bytes& b : {first, chunk(false, 200), chunk(true, 300)})
+    file.insert(file.end(), b.begin(), b.end());
+  ScratchDir dir;
+  write_all(dir / "cut.mcap", file);
+  auto rep = recover(dir / "cut.mcap", dir / "rec.mcap", {});
+  ASSERT_TRUE(rep.ok()) << rep.status().to_string();
+  EXPECT_EQ(rep->chunks_kept, 2u);
+  EXPECT_EQ(rep->chunks_dropped, 1u);
+  EXPECT_EQ(rep->messages_kept, 10u);  // before the fix: 5
+  EXPECT_EQ(rep->messages_dropped, 0u);
+  EXPECT_EQ(count_messages(dir / "rec.mcap"), 10u);
+}
+
+TEST(McapRecover, MagicFollowedByNoHeaderIsNotMcap) {
+  // The magic, then something that is not a Header record: refused, nothing written (before the
+  // fix: an empty file and success).
+  ScratchDir dir;
+  write_session(dir / "s.mcap", Compression::kNone, 3000);
+  const Bytes full = read_all(dir / "s.mcap");
+  struct Case {
+    const char* name;
+    Bytes bytes;
+    const char* expected;
+  };
+  std::uint64_t header_len = 0;  // the Header record's length field (after magic and opcode)
+  for (int i = 0; i < 8; ++i) header_len |= std::uint64_t{full[9 + i]} << (8 * i);
+  Bytes chunk_first(kMagic.begin(), kMagic.end());  // the records after the Header
+  chunk_first.insert(chunk_first.end(), full.begin() + 17 + static_cast<std::ptrdiff_t>(header_len),
+                     full.end());
+  Bytes text(kMagic.begin(), kMagic.end());
+  for (char c : std::string("this is not an MCAP header at all")) text.push_back(std::uint8_t(c));
+  Bytes huge_header(kMagic.begin(), kMagic.end());
+  huge_header.push_back(0x01);
+  for (int i = 0; i < 8; ++i) huge_header.push_back(0x7f);
+  huge_header.resize(200, 0);
+  Bytes garbage_header(kMagic.begin(), kMagic.end());
+  garbage_header.push_back(0x01);
+  const std::uint8_t len[8] = {4, 0, 0, 0, 0, 0, 0, 0};
+  garbage_header.insert(garbage_header.end(), len, len + 8);
+  for (int i = 0; i < 4; ++i) garbage_header.push_back(0xff);  // string length 2^32-1: no
+  const Case cases[] = {
+      {"text", text, "offset 8: not an MCAP file (the first record is opcode 0x74"},
+      {"no_header", chunk_first, "not a Header"},
+      {"huge_header", huge_header, "a Header record of"},
+      {"garbage_header", garbage_header, "its Header record does not decode"},
+  };
+  for (const Case& c : cases) {
+    const std::filesystem::path in = dir / (std::string(c.name) + ".mcap");
+    const std::filesystem::path out = dir / (std::string(c.name) + "-rec.mcap");
+    write_all(in, c.bytes);
+    auto r = recover(in, out, {});
+    ASSERT_FALSE(r.ok()) << c.name;
+    EXPECT_EQ(r.status().code(), StatusCode::kInvalidArgument) << c.name;
+    EXPECT_NE(r.status().message().find(c.expected), std::string::npos)
+        << c.name << ": " << r.status().message();
+    EXPECT_FALSE(std::filesystem::exists(out)) << c.name;
+    for (const auto& e : std::filesystem::directory_iterator(dir.path()))
+      EXPECT_EQ(e.path().filename().string().find(".tmp-"), std::string::npos) << e.path();
+  }
+  // A file cut inside its Header is a crash at creation: an empty but valid session.
+  write_all(dir / "cut_header.mcap", ByteSpan(full).first(12));
+  auto cut = recover(dir / "cut_header.mcap", dir / "cut-rec.mcap", {});
+  ASSERT_TRUE(cut.ok()) << cut.status().to_string();
+  EXPECT_EQ(count_messages(dir / "cut-rec.mcap"), 0u);
+}
+
 // Each kind of damage is reported, naming the offset.
 TEST(McapVerify, DetectsCorruption) {
   ScratchDir dir;
@@ -336,6 +462,30 @@ std::vector<std::uint8_t> decode_png(const std::string& bytes, std::uint32_t& w,
   w = image.width;
   h = image.height;
   return px;
+}
+
+TEST(SessionExport, FramesAppearWithTheirIndexAndAKilledExportIsCleanedUp) {
+  ScratchDir dir;
+  write_session(dir / "s.mcap", Compression::kZstd, 4000);
+  // What an export killed by kill -9 left: its staging folder with some frames (before the fix:
+  // frames in out/ without camera_0_image_frames.csv, and *.png.tmp-* files).
+  const pid_t dead = ::fork();
+  if (dead == 0) ::_exit(0);
+  ::waitpid(dead, nullptr, 0);
+  const std::filesystem::path stale =
+      dir / "out" / ("camera_0_image.tmp-" + std::to_string(dead) + "-0badf00d");
+  std::filesystem::create_directories(stale);
+  write_all(stale / "camera_0_image_000000.png", Bytes(10, 1));
+  auto png = export_channel(dir / "s.mcap", "/camera/0/image", dir / "out");
+  ASSERT_TRUE(png.ok()) << png.status().to_string();
+  EXPECT_FALSE(std::filesystem::exists(stale));
+  std::size_t files = 0;
+  for (const auto& e : std::filesystem::directory_iterator(dir / "out")) {
+    ++files;
+    EXPECT_EQ(e.path().filename().string().find(".tmp-"), std::string::npos) << e.path();
+  }
+  EXPECT_EQ(files, static_cast<std::size_t>(kFrames + 1));
+  EXPECT_TRUE(std::filesystem::exists(dir / "out" / "camera_0_image_frames.csv"));
 }
 
 TEST(SessionExport, CsvAndPng) {

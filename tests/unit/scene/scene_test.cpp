@@ -15,6 +15,7 @@
 #include <nlohmann/json.hpp>
 #include <string>
 
+#include "cli_run.h"
 #include "test_data.h"
 
 namespace hc::scene {
@@ -278,6 +279,33 @@ TEST(SimulateCli, BadInputExitsTwo) {
   { std::ofstream(dir / "away.json") << j.dump(); }
   EXPECT_EQ(run("simulate " + (dir / "away.json").string()).exit_code, 2);
   EXPECT_EQ(run("simulate " + (dir / "absent.json").string()).exit_code, 2);
+}
+
+TEST(SimulateCli, NonsenseIsRefusedNamingTheRealProblem) {
+  // Each of these exited 0 or with a misleading message before (issue 18, items 10-11).
+  ScratchDir dir;
+  const auto run_scene = [&](const std::string& name, const nlohmann::json& j) {
+    { std::ofstream(dir / name) << j.dump(); }
+    return hc::testing::run_command((bin_dir() / "hardcopy").string() + " --quiet simulate " +
+                                    (dir / name).string() + " 2>&1");
+  };
+  auto inside = base();
+  inside["probe"]["position_m"] = {0.02, 0.02, 0.01};  // the box is 20 mm high
+  hc::testing::CliRun r = run_scene("inside.json", inside);
+  EXPECT_EQ(r.exit_code, 2) << r.out;
+  EXPECT_NE(r.out.find("is inside the specimen"), std::string::npos) << r.out;
+
+  auto force = base();
+  force["load"] = {{"force_n", 1e300}};
+  r = run_scene("force.json", force);
+  EXPECT_EQ(r.exit_code, 2) << r.out;  // was "unreachable probe", exit 1
+  EXPECT_NE(r.out.find("load.force_n 1e+300 N is not a probe load"), std::string::npos) << r.out;
+
+  auto stiff = base();
+  stiff["material"]["linear"]["youngs_pa"] = 1e308;
+  r = run_scene("stiff.json", stiff);
+  EXPECT_EQ(r.exit_code, 2) << r.out;  // was "contact stiffness -nan"
+  EXPECT_NE(r.out.find("Young's modulus must be in (0, 1e+13] Pa"), std::string::npos) << r.out;
 }
 
 TEST(ValidateFemCli, PrintsEveryCaseAndFailsWhenACaseIsOutOfTolerance) {

@@ -90,6 +90,21 @@ TEST(HardcopyCli, FailedConvertLeavesNoFile) {
       << "only bad.off may be there";
 }
 
+TEST(HardcopyCli, WeldToleranceOnTheScaleOfTheMeshIsRefused) {
+  // --weld-tolerance 1e308 used to merge every vertex and write an empty mesh.
+  ScratchDir dir;
+  const std::string out = (dir / "out.stl").string();
+  const CliRun r = run_command((bin_dir() / "hardcopy").string() + " --quiet mesh repair " +
+                               mesh("pinion.off") + " " + out + " --weld-tolerance 1e308 2>&1");
+  EXPECT_EQ(r.exit_code, 2) << r.out;
+  EXPECT_NE(r.out.find("of the mesh's bounding-box diagonal"), std::string::npos) << r.out;
+  EXPECT_FALSE(std::filesystem::exists(out));
+  const CliRun inf = run_command((bin_dir() / "hardcopy").string() + " --quiet mesh repair " +
+                                 mesh("pinion.off") + " " + out + " --weld-tolerance inf 2>&1");
+  EXPECT_EQ(inf.exit_code, 2) << inf.out;
+  EXPECT_NE(inf.out.find("must be a finite number, got inf"), std::string::npos) << inf.out;
+}
+
 TEST(HardcopyCli, RepairFixesOrientationButNotHoles) {
   ScratchDir dir;
   const auto fixed = (dir / "blobby.stl").string();

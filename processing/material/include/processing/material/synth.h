@@ -32,6 +32,11 @@ struct ReferenceIndentation {
 using ReferenceSimulator =
     std::function<Result<ReferenceIndentation>(const ProbePose& probe, double force_n)>;
 
+// Bounds of SynthOptions::validate(): far past any study (the thesis uses 9-12 examples and noise
+// up to 30 %), short of what only fails after minutes or gives non-finite positions.
+inline constexpr int kMaxSynthExamples = 10'000;
+inline constexpr double kMaxSynthNoise = 10.0;
+
 struct SynthOptions {
   int examples = 12;
   // Gaussian noise: per coordinate σ = noise × the example's largest displacement (Sec. 4.5).

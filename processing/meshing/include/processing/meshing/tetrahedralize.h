@@ -27,9 +27,12 @@ struct RegionSeed {
   double max_volume = 0;
 };
 
+// The tightest radius-edge bound accepted (see TetrahedralizeOptions::validate).
+inline constexpr double kMinRadiusEdgeRatio = 1.1;
+
 struct TetrahedralizeOptions {
-  // TetGen 'q': upper bound on the radius-edge ratio of every tet (≥ 1.0; TetGen's own default is
-  // 2.0; 1.414 is its recommended tight bound). 0 disables quality refinement.
+  // TetGen 'q': upper bound on the radius-edge ratio of every tet (≥ kMinRadiusEdgeRatio; TetGen's
+  // own default is 2.0; 1.414 is its recommended tight bound). 0 disables quality refinement.
   double max_radius_edge_ratio = 2.0;
   // TetGen 'q…/d': lower bound on dihedral angles in degrees (0: TetGen's default).
   double min_dihedral_deg = 0;
@@ -39,6 +42,10 @@ struct TetrahedralizeOptions {
   std::vector<RegionSeed> regions;
   // TetGen's hole list: points inside cavities that are to stay empty.
   std::vector<Eigen::Vector3d> holes;
+  // TetGen 'S': at most this many points added to the input (0: no limit). TetGen stops refining
+  // when they are used up, so this bounds the element count (and memory) whatever q and a ask;
+  // a result with nodes - input_vertices == max_steiner_points did not meet them.
+  long max_steiner_points = 0;
 
   // Fails with kInvalidArgument explaining the bad value.
   Status validate() const;

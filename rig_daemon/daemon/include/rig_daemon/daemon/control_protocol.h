@@ -8,9 +8,12 @@
 //   -> {"id": 9, "cmd": "subscribe"}
 //   <- {"event": "progress", "state": "running", "done": 12, "total": 180, ...}
 //
-// Commands: status, devices, start (plan, plan_name), pause, resume, stop, estop, subscribe,
-// shutdown. Requests are decoded strictly (unknown keys and commands are errors) so that a typo in
-// a client is reported, not ignored.
+// Commands: status, devices, start (plan, plan_name), pause, resume, stop, estop, reset (clears
+// the safety stop that a trip or an estop leaves; see Daemon::reset), subscribe, shutdown. Every
+// complete line is answered, also one that arrives just before the client half-closes its side
+// (RequestFramer); an unterminated last line before end-of-file counts as a line. Requests are
+// decoded strictly (unknown keys and commands are errors) so that a typo in a client is reported,
+// not ignored.
 #pragma once
 
 #include <cstddef>
@@ -36,6 +39,7 @@ enum class Command {
   kResume,
   kStop,
   kEstop,
+  kReset,
   kSubscribe,
   kShutdown
 };
@@ -69,5 +73,32 @@ struct Reply {
   Json body;            // responses: result; events: the whole object
 };
 Result<Reply> decode_reply(std::string_view line);
+
+// Splits a connection's byte stream into request lines: bytes go in as they arrive, complete lines
+// come out in order. At end-of-file (finish()) the unterminated rest is a line too, so a client
+// that writes its request and half-closes (`echo ... | socat - UNIX-CONNECT:...`) is served. A line
+// growing past max_line_bytes makes overlong() true (the rest of the stream is not framed).
+class RequestFramer {
+ public:
+  explicit RequestFramer(std::size_t max_line_bytes = kMaxRequestBytes)
+      : max_line_bytes_(max_line_bytes) {}
+  void append(std::string_view bytes);
+  void finish() { eof_ = true; }
+  // The next complete line without its '\n' (blank lines and a lone "\r" are skipped), or
+  // nothing when no complete line is buffered.
+  std::optional<std::string> next();
+  bool overlong() const { return overlong_; }
+  bool eof() const { return eof_; }
+  // True when nothing more can come out: end-of-file seen and every buffered line taken.
+  bool drained() const { return overlong_ || (eof_ && head_ == buffer_.size()); }
+
+ private:
+  std::size_t max_line_bytes_;
+  std::string buffer_;
+  std::size_t head_ = 0;     // buffer_[0, head_) was taken already
+  std::size_t scanned_ = 0;  // buffer_[head_, scanned_) holds no '\n'
+  bool eof_ = false;
+  bool overlong_ = false;
+};
 
 }  // namespace hc::rig

@@ -48,7 +48,15 @@ class Daemon {
   Status resume();
   Status stop();
   // Always works: stops the arm now (also with no session running) and aborts the session.
+  // Like a session's safety trip it leaves the rig in a safety stop: start is refused until
+  // reset().
   Json estop();
+  // Clears the safety stop: resets devices left in error and clears an arm fault (refused while a
+  // session runs; the stop stays when the arm is still in fault). The next automated capture
+  // still checks the force before it moves anything.
+  Result<Json> reset();
+  // The safety stop in force (kind, message, since), or null.
+  Json safety_stop() const;
   // Waits until no session runs (true) or the timeout passes (false).
   bool wait_idle(int timeout_ms);
   // The summary of the last finished session (null before the first).
@@ -67,6 +75,7 @@ class Daemon {
   std::thread thread_;
   bool running_ = false;
   Json last_summary_;
+  Json safety_stop_;  // null, or why starts are refused until reset()
   std::uint64_t sessions_started_ = 0;
 };
 

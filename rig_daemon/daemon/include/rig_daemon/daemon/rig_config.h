@@ -8,7 +8,8 @@
 //     ft: {kind: force_torque, backend: sim}
 //     arm: {kind: arm, backend: sim}
 //   workspace: {min_m: [-0.1, -0.1, 0.0], max_m: [0.1, 0.1, 0.2]}
-//   max_force_n: 50
+//   max_force_n: 50                # no plan may ask for more (checked when it is started)
+//   start_max_force_n: 2           # an automated capture refuses to start above this force
 //   sessions_dir: ./sessions
 //   socket: ./sessions/rigd.sock   # optional; see default_socket_path()
 //   control_period_s: 0.001        # safety / arm control cycle
@@ -50,6 +51,7 @@ struct RigConfig {
   std::vector<DeviceConfig> devices;  // in file order
   WorkspaceBox workspace;
   double max_force_n = 50.0;
+  double start_max_force_n = 2.0;
   std::filesystem::path sessions_dir = "sessions";
   std::filesystem::path socket;  // empty: default_socket_path()
   double control_period_s = 0.001;

@@ -30,7 +30,14 @@ Result<SafetyLimits> combine_limits(const WorkspaceBox& rig_box, double rig_max_
                                     const double* plan_max_force_n);
 
 struct SafetyTrip {
-  enum class Kind { kOverForce, kStalledForce, kWorkspace, kEstop, kDeviceError };
+  enum class Kind {
+    kOverForce,
+    kStalledForce,
+    kWorkspace,
+    kEstop,
+    kDeviceError,
+    kStartCheck,  // refused to start: force above start_max_force_n, or the arm in fault
+  };
   Kind kind = Kind::kOverForce;
   std::string message;
   std::int64_t sample_host_ns = 0;  // the sample that crossed the limit (over-force)

@@ -8,8 +8,13 @@
 // whose target forces rise linearly to the level (each step advances the probe until the measured
 // force reaches the target, using the local stiffness seen so far), settle, fire the trigger
 // (frames_per_step pulses) and wait for every camera's frame and the force samples of each edge,
-// then retract. Hand-held protocol (thesis 4.4): a pulse train at the plan's rate for its duration;
-// every edge fires the cameras and latches an FSR reading.
+// then retract. Before anything moves it refuses to start (a safety stop of kind start_check)
+// while the arm is in fault or the force is above start_max_force_n; a step whose force is not
+// reached within max_depth_m fails the session (after retracting). After an over-force or
+// workspace stop the probe is retracted to the press's start pose, slowly, watching the force;
+// every stop is recorded on the arm's command channel with the arm's state after it. Hand-held
+// protocol (thesis 4.4): a pulse train at the plan's rate for its duration; every edge fires the
+// cameras and latches an FSR reading.
 #pragma once
 
 #include <atomic>
@@ -56,7 +61,8 @@ struct SessionOptions {
 
 class Session {
  public:
-  // Checks the plan against the rig (device names and kinds, workspace) without touching devices.
+  // Checks the plan against the rig (device names and kinds, workspace, max force) without
+  // touching devices.
   static Status validate(const Rig& rig, const Plan& plan);
 
   Session(Rig& rig, SessionOptions options);

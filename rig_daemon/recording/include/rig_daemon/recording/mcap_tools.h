@@ -44,24 +44,30 @@ struct RecoverReport {
   std::uint64_t chunks_kept = 0;
   std::uint64_t chunks_dropped = 0;  // incomplete or failing their CRC / decompression
   std::uint64_t messages_kept = 0;
-  std::uint64_t messages_dropped = 0;  // in kept chunks but on a channel whose definition was lost
+  std::uint64_t messages_dropped = 0;  // in kept chunks but on a channel defined nowhere intact
   std::uint64_t metadata_kept = 0;
   std::uint64_t attachments_kept = 0;
-  std::uint64_t input_bytes_used = 0;  // offset where the usable input ended
-  bool input_was_complete = false;     // the input had its Footer
-  std::string stop_reason;             // why the scan of the input stopped ("" at the Footer)
+  std::uint64_t definitions_found = 0;  // channel definitions found anywhere in the input
+  std::uint64_t input_bytes_used = 0;   // offset where the usable input ended
+  bool input_was_complete = false;      // the input had its Footer
+  std::string stop_reason;              // why the scan of the input stopped ("" at the Footer)
   Json to_json() const;
 };
 
 // Linear scan of `input` (typically cut off by a crash); writes `output` as a complete file with a
 // fresh summary holding every complete chunk whose CRC checks (re-chunked unchanged: messages keep
 // their channel ids, sequences and times), every Schema / Channel / Metadata / Attachment found.
-// `options` gives the output's compression and chunk size. The output is written to a temporary
-// name and renamed, so nothing half-written is left behind on failure. Fails when `input` is not
-// MCAP (bad magic) or unreadable, or when output == input.
+// Definitions come from wherever the input still holds them (a first pass reads the top level,
+// every chunk that checks and the summary section), so a corrupt chunk loses only its own
+// messages. `options` gives the output's compression and chunk size; chunks that would
+// decompress to more than `max_chunk_bytes` are dropped. The output is written to a temporary name
+// and renamed, so nothing half-written is left behind on failure. Fails (kInvalidArgument) when
+// `input` is not MCAP (bad magic, or the record after it is not a Header), kNotFound when it
+// cannot be read, and when output == input.
 Result<RecoverReport> recover(const std::filesystem::path& input,
                               const std::filesystem::path& output,
-                              const McapWriter::Options& options);
+                              const McapWriter::Options& options,
+                              std::uint64_t max_chunk_bytes = std::uint64_t{1} << 34);
 
 // ---- info ----
 struct ChannelInfo {
@@ -131,8 +137,10 @@ struct ExportReport {
 //   and 8UC1/16UC1/8UC3) plus "<name>_frames.csv" (file, log_time_ns, publish_time_ns, sequence,
 //   device timestamp_ns, width, height, encoding).
 // * foxglove.CompressedImage: the stored bytes as "<name>_<index>.<format>" plus the index CSV.
-// Each file is written atomically. Fails with not_found for an unknown topic and unsupported for
-// another encoding.
+// Each file is written atomically; frames and their index are written into a staging folder and
+// moved into out_dir together at the end (a failed or killed export leaves no frames without their
+// index; a killed export's staging folder is removed by the next export into out_dir). Fails with
+// not_found for an unknown topic and unsupported for another encoding.
 Result<ExportReport> export_channel(const std::filesystem::path& mcap, std::string_view topic,
                                     const std::filesystem::path& out_dir);
 
