@@ -431,22 +431,6 @@ Result<Config> load_config(const std::filesystem::path& path) {
 
 // ---- Bounds ----
 
-bool Bounds::contains(double v) const {
-  if (std::isnan(v)) return false;
-  if (min && (min_exclusive ? !(v > *min) : !(v >= *min))) return false;
-  if (max && (max_exclusive ? !(v < *max) : !(v <= *max))) return false;
-  return true;
-}
-
-std::string Bounds::describe(std::string_view what) const {
-  if (min && max)
-    return fmt::format("{} in {}{}, {}{}", what, min_exclusive ? '(' : '[', *min, *max,
-                       max_exclusive ? ')' : ']');
-  if (min) return fmt::format("{} {} {}", what, min_exclusive ? ">" : ">=", *min);
-  if (max) return fmt::format("{} {} {}", what, max_exclusive ? "<" : "<=", *max);
-  return std::string(what);
-}
-
 // ---- ConfigNode: maps and sequences ----
 
 bool ConfigNode::has(std::string_view key) { return find(key).has_value(); }

@@ -340,11 +340,10 @@ void explain(MeshCheckReport* report) {
 
 }  // namespace
 
-std::string MeshCheckOptions::validate() const { return {}; }
+Status MeshCheckOptions::validate() const { return {}; }
 
 Result<MeshCheckReport> check_mesh(const TriangleMesh& mesh, const MeshCheckOptions& options) {
-  if (std::string why = options.validate(); !why.empty())
-    return invalid_argument("mesh check options: " + why);
+  HC_RETURN_IF_ERROR(options.validate().with_context("mesh check options"));
   const auto start = Clock::now();
   MeshCheckReport report;
   StageClock clock(&report);

@@ -258,14 +258,175 @@ void resolve_self_intersections(const MeshRepairOptions& options,
   stage.time_s = std::chrono::duration<double>(Clock::now() - start).count();
 }
 
+// The triangles after welding and the removal of degenerate and duplicate triangles, ready for
+// the CGAL stage.
+struct WeldedSoup {
+  MatrixX3d positions;              // welded positions of the used vertices
+  std::vector<Triangle> triangles;  // three distinct corners, indices into `positions`
+  std::vector<Triangle> repeated;   // kept triangles with a repeated corner
+  std::vector<int> unused;          // input vertices no triangle uses
+};
+
+WeldedSoup weld_and_filter(const MeshRepairOptions& options, const TriangleMesh& mesh,
+                           MeshRepairSummary* summary) {
+  WeldedSoup out;
+  const auto nv = static_cast<std::size_t>(mesh.num_vertices());
+  std::vector<char> referenced(nv, 0);
+  for (Eigen::Index t = 0; t < mesh.num_triangles(); ++t)
+    for (int k = 0; k < 3; ++k) referenced[static_cast<std::size_t>(mesh.triangles(t, k))] = 1;
+  std::vector<int> used;
+  for (std::size_t v = 0; v < nv; ++v)
+    (referenced[v] != 0 ? used : out.unused).push_back(static_cast<int>(v));
+
+  // Only used vertices are welded: unused ones are dropped or carried over untouched (they
+  // may hold anything, even NaN, since no triangle reaches them).
+  std::vector<int> welded(nv, -1);
+  out.positions = options.weld_tolerance > 0.0
+                      ? weld_within(mesh.vertices, used, options.weld_tolerance, &welded)
+                      : weld_exact(mesh.vertices, used, &welded);
+  summary->merged_vertices = static_cast<std::int64_t>(used.size()) - out.positions.rows();
+
+  // Triangles with a repeated corner (some from welding) bound nothing; when kept, they stay
+  // out of the CGAL stage, which needs three distinct corners.
+  std::vector<Triangle>& triangles = out.triangles;
+  triangles.reserve(static_cast<std::size_t>(mesh.num_triangles()));
+  for (Eigen::Index t = 0; t < mesh.num_triangles(); ++t) {
+    const Triangle tri{welded[mesh.triangles(t, 0)], welded[mesh.triangles(t, 1)],
+                       welded[mesh.triangles(t, 2)]};
+    if (tri[0] != tri[1] && tri[1] != tri[2] && tri[2] != tri[0]) {
+      triangles.push_back(tri);
+    } else if (options.remove_degenerate_triangles) {
+      ++summary->removed_degenerate_triangles;
+    } else {
+      out.repeated.push_back(tri);
+    }
+  }
+  if (options.remove_duplicate_triangles) {
+    // Keep the first triangle on each vertex set, whatever its orientation.
+    std::vector<std::pair<std::array<int, 3>, std::size_t>> keys;
+    keys.reserve(triangles.size());
+    for (std::size_t i = 0; i < triangles.size(); ++i)
+      keys.emplace_back(oriented_key(triangles[i]).sorted, i);
+    std::sort(keys.begin(), keys.end());
+    std::vector<char> drop(triangles.size(), 0);
+    for (std::size_t i = 1; i < keys.size(); ++i)
+      if (keys[i].first == keys[i - 1].first) drop[keys[i].second] = 1;
+    std::size_t n = 0;
+    for (std::size_t i = 0; i < triangles.size(); ++i)
+      if (drop[i] == 0) triangles[n++] = triangles[i];
+    summary->removed_duplicate_triangles = static_cast<std::int64_t>(triangles.size() - n);
+    triangles.resize(n);
+  }
+  return out;
+}
+
+// The CGAL stage (orientation, collinear and late duplicate removal) on the vertices the
+// triangles use (CGAL's volume orientation trips on isolated vertices); `welded.triangles` are
+// renumbered into the returned soup's numbering before the stage.
+Result<TriangleMesh> repair_soup(const MeshRepairOptions& options, WeldedSoup& welded,
+                                 MeshRepairSummary* summary) {
+  std::vector<Triangle>& triangles = welded.triangles;
+  TriangleMesh soup;
+  std::vector<int> soup_index(static_cast<std::size_t>(welded.positions.rows()), -1);
+  for (const Triangle& tri : triangles)
+    for (int v : tri) soup_index[v] = 0;
+  int used_welded = 0;
+  for (int& index : soup_index)
+    if (index == 0) index = used_welded++;
+  soup.vertices.resize(used_welded, 3);
+  for (Eigen::Index v = 0; v < welded.positions.rows(); ++v)
+    if (soup_index[v] >= 0) soup.vertices.row(soup_index[v]) = welded.positions.row(v);
+  soup.triangles.resize(static_cast<Eigen::Index>(triangles.size()), 3);
+  for (std::size_t i = 0; i < triangles.size(); ++i) {
+    for (int k = 0; k < 3; ++k) {
+      triangles[i][k] = soup_index[triangles[i][k]];
+      soup.triangles(static_cast<Eigen::Index>(i), k) = triangles[i][k];
+    }
+  }
+  if (options.orient || options.remove_degenerate_triangles) {
+    const MatrixX3d soup_positions = soup.vertices;
+    geometry::SoupRepairOptions soup_options;
+    soup_options.orient = options.orient;
+    soup_options.remove_collinear = options.remove_degenerate_triangles;
+    soup_options.remove_duplicates = options.remove_duplicate_triangles;
+    geometry::SoupRepairStats stats;
+    HC_RETURN_IF_ERROR(geometry::repair_triangle_soup(soup_options, &soup, &stats));
+    summary->removed_degenerate_triangles +=
+        stats.collinear_before - stats.collinear_after + stats.degenerate_removed_later;
+    summary->removed_duplicate_triangles += stats.duplicates_removed_later;
+    summary->split_non_manifold_vertices = stats.split_vertices;
+    summary->flipped_triangles = count_flipped(soup_positions, triangles, soup);
+  }
+  return soup;
+}
+
+// Reassembles the soup, then every welded vertex the soup lost (used by a kept repeated-corner
+// triangle, or by nothing any more), looked up by position since the CGAL stage may renumber
+// vertices; then drops the vertices left unused when asked to.
+TriangleMesh reassemble(const MeshRepairOptions& options, const TriangleMesh& input,
+                        const WeldedSoup& welded, const TriangleMesh& soup,
+                        MeshRepairSummary* summary) {
+  const MatrixX3d& welded_positions = welded.positions;
+  TriangleMesh repaired;
+  repaired.vertices = soup.vertices;
+  std::vector<Triangle> out_triangles;
+  out_triangles.reserve(static_cast<std::size_t>(soup.num_triangles()) + welded.repeated.size());
+  for (Eigen::Index t = 0; t < soup.num_triangles(); ++t)
+    out_triangles.push_back({soup.triangles(t, 0), soup.triangles(t, 1), soup.triangles(t, 2)});
+  std::unordered_map<std::array<std::uint64_t, 3>, int, ArrayHash> index_of;
+  for (Eigen::Index v = soup.vertices.rows() - 1; v >= 0; --v)
+    index_of[position_key(soup.vertices, v)] = static_cast<int>(v);  // lowest index wins
+  std::vector<int> welded_to_out(static_cast<std::size_t>(welded_positions.rows()));
+  Eigen::Index n_out = repaired.vertices.rows();
+  repaired.vertices.conservativeResize(n_out + welded_positions.rows(), 3);
+  for (Eigen::Index v = 0; v < welded_positions.rows(); ++v) {
+    const auto [it, added] =
+        index_of.try_emplace(position_key(welded_positions, v), static_cast<int>(n_out));
+    if (added) repaired.vertices.row(n_out++) = welded_positions.row(v);
+    welded_to_out[v] = it->second;
+  }
+  repaired.vertices.conservativeResize(n_out, 3);
+  for (const Triangle& tri : welded.repeated)
+    out_triangles.push_back({welded_to_out[tri[0]], welded_to_out[tri[1]], welded_to_out[tri[2]]});
+  const std::vector<int>& unused = welded.unused;
+  if (!options.remove_unreferenced_vertices && !unused.empty()) {
+    const Eigen::Index n = repaired.vertices.rows();
+    repaired.vertices.conservativeResize(n + static_cast<Eigen::Index>(unused.size()), 3);
+    for (std::size_t i = 0; i < unused.size(); ++i)
+      repaired.vertices.row(n + static_cast<Eigen::Index>(i)) = input.vertices.row(unused[i]);
+  } else {
+    summary->removed_unreferenced_vertices = static_cast<std::int64_t>(unused.size());
+  }
+
+  // Vertices left unused by the triangle removals above.
+  std::vector<int> new_index(static_cast<std::size_t>(repaired.vertices.rows()), -1);
+  for (const Triangle& tri : out_triangles)
+    for (int v : tri) new_index[v] = 0;
+  int n = 0;
+  for (Eigen::Index v = 0; v < repaired.vertices.rows(); ++v) {
+    const bool keep = new_index[v] == 0 || !options.remove_unreferenced_vertices;
+    new_index[v] = keep ? n++ : -1;
+    if (keep) repaired.vertices.row(new_index[v]) = repaired.vertices.row(v);
+  }
+  summary->removed_unreferenced_vertices += repaired.vertices.rows() - n;
+  repaired.vertices.conservativeResize(n, 3);
+  repaired.triangles.resize(static_cast<Eigen::Index>(out_triangles.size()), 3);
+  for (std::size_t i = 0; i < out_triangles.size(); ++i)
+    for (int k = 0; k < 3; ++k)
+      repaired.triangles(static_cast<Eigen::Index>(i), k) = new_index[out_triangles[i][k]];
+  return repaired;
+}
+
 }  // namespace
 
-std::string MeshRepairOptions::validate() const {
+Status MeshRepairOptions::validate() const {
   if (!std::isfinite(weld_tolerance) || weld_tolerance < 0.0)
-    return fmt::format("weld_tolerance must be finite and >= 0, got {}", weld_tolerance);
+    return invalid_argument(
+        fmt::format("weld_tolerance must be finite and >= 0, got {}", weld_tolerance));
   if (!std::isfinite(self_intersection_max_deviation) || self_intersection_max_deviation <= 0.0)
-    return fmt::format("self_intersection_max_deviation must be finite and > 0, got {}",
-                       self_intersection_max_deviation);
+    return invalid_argument(
+        fmt::format("self_intersection_max_deviation must be finite and > 0, got {}",
+                    self_intersection_max_deviation));
   return {};
 }
 
@@ -280,8 +441,7 @@ Status repair_mesh(const MeshRepairOptions& options, TriangleMesh* mesh,
                    MeshRepairSummary* summary) {
   if (mesh == nullptr || summary == nullptr)
     return invalid_argument("mesh repair: mesh and summary must not be null");
-  if (std::string why = options.validate(); !why.empty())
-    return invalid_argument("mesh repair options: " + why);
+  HC_RETURN_IF_ERROR(options.validate().with_context("mesh repair options"));
   const auto start = Clock::now();
   *summary = MeshRepairSummary{};
   MeshCheckOptions check_options;
@@ -292,142 +452,11 @@ Status repair_mesh(const MeshRepairOptions& options, TriangleMesh* mesh,
   TriangleMesh repaired;
   {
     ProgressTask task(options.progress, "mesh repair", 3);
-    const auto nv = static_cast<std::size_t>(mesh->num_vertices());
-    std::vector<char> referenced(nv, 0);
-    for (Eigen::Index t = 0; t < mesh->num_triangles(); ++t)
-      for (int k = 0; k < 3; ++k) referenced[static_cast<std::size_t>(mesh->triangles(t, k))] = 1;
-    std::vector<int> used;
-    std::vector<int> unused;
-    for (std::size_t v = 0; v < nv; ++v)
-      (referenced[v] != 0 ? used : unused).push_back(static_cast<int>(v));
-
-    // Only used vertices are welded: unused ones are dropped or carried over untouched (they
-    // may hold anything, even NaN, since no triangle reaches them).
-    std::vector<int> welded(nv, -1);
-    TriangleMesh soup;
-    soup.vertices = options.weld_tolerance > 0.0
-                        ? weld_within(mesh->vertices, used, options.weld_tolerance, &welded)
-                        : weld_exact(mesh->vertices, used, &welded);
-    summary->merged_vertices = static_cast<std::int64_t>(used.size()) - soup.vertices.rows();
-
-    // Triangles with a repeated corner (some from welding) bound nothing; when kept, they stay
-    // out of the CGAL stage, which needs three distinct corners.
-    std::vector<Triangle> triangles;
-    std::vector<Triangle> repeated;
-    triangles.reserve(static_cast<std::size_t>(mesh->num_triangles()));
-    for (Eigen::Index t = 0; t < mesh->num_triangles(); ++t) {
-      const Triangle tri{welded[mesh->triangles(t, 0)], welded[mesh->triangles(t, 1)],
-                         welded[mesh->triangles(t, 2)]};
-      if (tri[0] != tri[1] && tri[1] != tri[2] && tri[2] != tri[0]) {
-        triangles.push_back(tri);
-      } else if (options.remove_degenerate_triangles) {
-        ++summary->removed_degenerate_triangles;
-      } else {
-        repeated.push_back(tri);
-      }
-    }
-    if (options.remove_duplicate_triangles) {
-      // Keep the first triangle on each vertex set, whatever its orientation.
-      std::vector<std::pair<std::array<int, 3>, std::size_t>> keys;
-      keys.reserve(triangles.size());
-      for (std::size_t i = 0; i < triangles.size(); ++i)
-        keys.emplace_back(oriented_key(triangles[i]).sorted, i);
-      std::sort(keys.begin(), keys.end());
-      std::vector<char> drop(triangles.size(), 0);
-      for (std::size_t i = 1; i < keys.size(); ++i)
-        if (keys[i].first == keys[i - 1].first) drop[keys[i].second] = 1;
-      std::size_t n = 0;
-      for (std::size_t i = 0; i < triangles.size(); ++i)
-        if (drop[i] == 0) triangles[n++] = triangles[i];
-      summary->removed_duplicate_triangles = static_cast<std::int64_t>(triangles.size() - n);
-      triangles.resize(n);
-    }
+    WeldedSoup welded = weld_and_filter(options, *mesh, summary);
     task.advance();
-
-    // The CGAL stage sees only the vertices its triangles use (CGAL's volume orientation trips on
-    // isolated vertices); the rest are added back below.
-    const MatrixX3d welded_positions = std::move(soup.vertices);
-    std::vector<int> soup_index(static_cast<std::size_t>(welded_positions.rows()), -1);
-    for (const Triangle& tri : triangles)
-      for (int v : tri) soup_index[v] = 0;
-    int used_welded = 0;
-    for (int& index : soup_index)
-      if (index == 0) index = used_welded++;
-    soup.vertices.resize(used_welded, 3);
-    for (Eigen::Index v = 0; v < welded_positions.rows(); ++v)
-      if (soup_index[v] >= 0) soup.vertices.row(soup_index[v]) = welded_positions.row(v);
-    soup.triangles.resize(static_cast<Eigen::Index>(triangles.size()), 3);
-    for (std::size_t i = 0; i < triangles.size(); ++i) {
-      for (int k = 0; k < 3; ++k) {
-        triangles[i][k] = soup_index[triangles[i][k]];
-        soup.triangles(static_cast<Eigen::Index>(i), k) = triangles[i][k];
-      }
-    }
-    if (options.orient || options.remove_degenerate_triangles) {
-      const MatrixX3d soup_positions = soup.vertices;
-      geometry::SoupRepairOptions soup_options;
-      soup_options.orient = options.orient;
-      soup_options.remove_collinear = options.remove_degenerate_triangles;
-      soup_options.remove_duplicates = options.remove_duplicate_triangles;
-      geometry::SoupRepairStats stats;
-      HC_RETURN_IF_ERROR(geometry::repair_triangle_soup(soup_options, &soup, &stats));
-      summary->removed_degenerate_triangles +=
-          stats.collinear_before - stats.collinear_after + stats.degenerate_removed_later;
-      summary->removed_duplicate_triangles += stats.duplicates_removed_later;
-      summary->split_non_manifold_vertices = stats.split_vertices;
-      summary->flipped_triangles = count_flipped(soup_positions, triangles, soup);
-    }
+    HC_ASSIGN_OR_RETURN(const TriangleMesh soup, repair_soup(options, welded, summary));
     task.advance();
-
-    // Reassemble: the soup, then every welded vertex the soup lost (used by a kept
-    // repeated-corner triangle, or by nothing any more), looked up by position since the CGAL
-    // stage may renumber vertices.
-    repaired.vertices = soup.vertices;
-    std::vector<Triangle> out_triangles;
-    out_triangles.reserve(static_cast<std::size_t>(soup.num_triangles()) + repeated.size());
-    for (Eigen::Index t = 0; t < soup.num_triangles(); ++t)
-      out_triangles.push_back({soup.triangles(t, 0), soup.triangles(t, 1), soup.triangles(t, 2)});
-    std::unordered_map<std::array<std::uint64_t, 3>, int, ArrayHash> index_of;
-    for (Eigen::Index v = soup.vertices.rows() - 1; v >= 0; --v)
-      index_of[position_key(soup.vertices, v)] = static_cast<int>(v);  // lowest index wins
-    std::vector<int> welded_to_out(static_cast<std::size_t>(welded_positions.rows()));
-    Eigen::Index n_out = repaired.vertices.rows();
-    repaired.vertices.conservativeResize(n_out + welded_positions.rows(), 3);
-    for (Eigen::Index v = 0; v < welded_positions.rows(); ++v) {
-      const auto [it, added] =
-          index_of.try_emplace(position_key(welded_positions, v), static_cast<int>(n_out));
-      if (added) repaired.vertices.row(n_out++) = welded_positions.row(v);
-      welded_to_out[v] = it->second;
-    }
-    repaired.vertices.conservativeResize(n_out, 3);
-    for (const Triangle& tri : repeated)
-      out_triangles.push_back(
-          {welded_to_out[tri[0]], welded_to_out[tri[1]], welded_to_out[tri[2]]});
-    if (!options.remove_unreferenced_vertices && !unused.empty()) {
-      const Eigen::Index n = repaired.vertices.rows();
-      repaired.vertices.conservativeResize(n + static_cast<Eigen::Index>(unused.size()), 3);
-      for (std::size_t i = 0; i < unused.size(); ++i)
-        repaired.vertices.row(n + static_cast<Eigen::Index>(i)) = mesh->vertices.row(unused[i]);
-    } else {
-      summary->removed_unreferenced_vertices = static_cast<std::int64_t>(unused.size());
-    }
-
-    // Vertices left unused by the triangle removals above.
-    std::vector<int> new_index(static_cast<std::size_t>(repaired.vertices.rows()), -1);
-    for (const Triangle& tri : out_triangles)
-      for (int v : tri) new_index[v] = 0;
-    int n = 0;
-    for (Eigen::Index v = 0; v < repaired.vertices.rows(); ++v) {
-      const bool keep = new_index[v] == 0 || !options.remove_unreferenced_vertices;
-      new_index[v] = keep ? n++ : -1;
-      if (keep) repaired.vertices.row(new_index[v]) = repaired.vertices.row(v);
-    }
-    summary->removed_unreferenced_vertices += repaired.vertices.rows() - n;
-    repaired.vertices.conservativeResize(n, 3);
-    repaired.triangles.resize(static_cast<Eigen::Index>(out_triangles.size()), 3);
-    for (std::size_t i = 0; i < out_triangles.size(); ++i)
-      for (int k = 0; k < 3; ++k)
-        repaired.triangles(static_cast<Eigen::Index>(i), k) = new_index[out_triangles[i][k]];
+    repaired = reassemble(options, *mesh, welded, soup, summary);
     task.advance();
     task.set_summary(summary->changed() ? "changed" : "nothing to change");
   }

@@ -6,51 +6,41 @@
 #include <cmath>
 
 #include "common/file_io.h"
-#include "json_fields.h"
+#include "common/json_reader.h"
 
 namespace hc::material {
 namespace {
 
-using detail::FieldReader;
-using detail::index;
-using detail::join;
-
 // Refuse absurd basis sizes before allocating (a fitted basis has at most the number of examples).
 constexpr std::size_t kMaxCentres = 100000;
 
-Result<StrainRbf> read_rbf(const FieldReader& r, const Json& j, const std::string& path) {
+Result<StrainRbf> read_rbf(const JsonNode& j) {
   StrainRbf rbf;
-  HC_RETURN_IF_ERROR(r.object(j, path));
   HC_RETURN_IF_ERROR(
-      r.only_keys(j, path, {"centres", "weights", "constant", "lambda_floor_pa", "max_poisson"}));
-  HC_ASSIGN_OR_RETURN(const Json* centres, r.member(j, path, "centres"));
-  HC_ASSIGN_OR_RETURN(const Json* weights, r.member(j, path, "weights"));
-  const std::string cpath = join(path, "centres");
-  const std::string wpath = join(path, "weights");
-  HC_RETURN_IF_ERROR(r.array(*centres, cpath));
-  HC_RETURN_IF_ERROR(r.array(*weights, wpath));
-  if (centres->size() > kMaxCentres)
-    return r.error(cpath, fmt::format("too many centres ({} > {})", centres->size(), kMaxCentres));
-  if (weights->size() != centres->size())
-    return r.error(wpath, fmt::format("expected {} weights (one per centre), got {}",
-                                      centres->size(), weights->size()));
-  rbf.centres.resize(centres->size());
-  rbf.weights.resize(static_cast<Eigen::Index>(weights->size()), 2);
-  for (std::size_t i = 0; i < centres->size(); ++i) {
-    HC_RETURN_IF_ERROR(r.vector<6>((*centres)[i], index(cpath, i), &rbf.centres[i]));
-    Eigen::Vector2d w;
-    HC_RETURN_IF_ERROR(r.vector<2>((*weights)[i], index(wpath, i), &w));
+      j.only_keys({"centres", "weights", "constant", "lambda_floor_pa", "max_poisson"}));
+  HC_ASSIGN_OR_RETURN(const JsonNode centres, j.member("centres"));
+  HC_ASSIGN_OR_RETURN(const JsonNode weights, j.member("weights"));
+  HC_RETURN_IF_ERROR(centres.expect_array());
+  HC_RETURN_IF_ERROR(weights.expect_array());
+  if (centres.size() > kMaxCentres)
+    return centres.error(fmt::format("too many centres ({} > {})", centres.size(), kMaxCentres));
+  if (weights.size() != centres.size())
+    return weights.error(fmt::format("expected {} weights (one per centre), got {}", centres.size(),
+                                     weights.size()));
+  rbf.centres.resize(centres.size());
+  rbf.weights.resize(static_cast<Eigen::Index>(weights.size()), 2);
+  for (std::size_t i = 0; i < centres.size(); ++i) {
+    HC_ASSIGN_OR_RETURN(rbf.centres[i], centres[i].vector<6>());
+    HC_ASSIGN_OR_RETURN(const Eigen::Vector2d w, weights[i].vector<2>());
     rbf.weights.row(static_cast<Eigen::Index>(i)) = w.transpose();
   }
-  HC_ASSIGN_OR_RETURN(const Json* constant, r.member(j, path, "constant"));
-  HC_RETURN_IF_ERROR(r.vector<2>(*constant, join(path, "constant"), &rbf.constant));
-  HC_ASSIGN_OR_RETURN(const Json* floor, r.member(j, path, "lambda_floor_pa"));
-  HC_RETURN_IF_ERROR(r.number(*floor, join(path, "lambda_floor_pa"), &rbf.lambda_floor_pa));
-  if (!(rbf.lambda_floor_pa > 0)) return r.error(join(path, "lambda_floor_pa"), "must be > 0");
-  if (const Json* mp = r.optional(j, "max_poisson")) {
-    HC_RETURN_IF_ERROR(r.number(*mp, join(path, "max_poisson"), &rbf.max_poisson));
-    if (!(rbf.max_poisson > 0 && rbf.max_poisson < 0.5))
-      return r.error(join(path, "max_poisson"), "must be in (0, 0.5)");
+  HC_RETURN_IF_ERROR(j.get("constant", rbf.constant));
+  HC_ASSIGN_OR_RETURN(const JsonNode floor, j.member("lambda_floor_pa"));
+  HC_ASSIGN_OR_RETURN(rbf.lambda_floor_pa, floor.number());
+  if (!(rbf.lambda_floor_pa > 0)) return floor.error("must be > 0");
+  if (const auto mp = j.find("max_poisson")) {
+    HC_ASSIGN_OR_RETURN(rbf.max_poisson, mp->number());
+    if (!(rbf.max_poisson > 0 && rbf.max_poisson < 0.5)) return mp->error("must be in (0, 0.5)");
   }
   return rbf;
 }
@@ -142,62 +132,53 @@ LambdaAlpha RbfMaterial::params(Eigen::Index element, const Vector6d& strain) co
 
 Result<Material> parse_material(std::string_view text, std::string_view name) {
   HC_ASSIGN_OR_RETURN(Json doc, parse_json(text, name));
-  const FieldReader r(name);
-  HC_RETURN_IF_ERROR(r.object(doc, ""));
-  HC_ASSIGN_OR_RETURN(const Json* format, r.member(doc, "", "format"));
-  std::string s;
-  HC_RETURN_IF_ERROR(r.string(*format, "format", &s));
+  const JsonNode root(doc, name);
+  HC_ASSIGN_OR_RETURN(const JsonNode format, root.member("format"));
+  HC_ASSIGN_OR_RETURN(std::string s, format.string());
   if (s != kMaterialFormat)
-    return r.error("format", fmt::format("expected '{}', got '{}'", kMaterialFormat, s));
-  HC_ASSIGN_OR_RETURN(const Json* version, r.member(doc, "", "version"));
-  long long v = 0;
-  HC_RETURN_IF_ERROR(r.integer(*version, "version", std::numeric_limits<long long>::min(),
-                               std::numeric_limits<long long>::max(), &v));
+    return format.error(fmt::format("expected '{}', got '{}'", kMaterialFormat, s));
+  HC_ASSIGN_OR_RETURN(const JsonNode version, root.member("version"));
+  HC_ASSIGN_OR_RETURN(const std::int64_t v, version.integer<std::int64_t>());
   if (v != kMaterialVersion)
-    return r.error("version", fmt::format("unknown version {} (this build reads version {})", v,
-                                          kMaterialVersion));
-  HC_ASSIGN_OR_RETURN(const Json* kind, r.member(doc, "", "kind"));
-  HC_RETURN_IF_ERROR(r.string(*kind, "kind", &s));
+    return version.error(
+        fmt::format("unknown version {} (this build reads version {})", v, kMaterialVersion));
+  HC_ASSIGN_OR_RETURN(const JsonNode kind, root.member("kind"));
+  HC_ASSIGN_OR_RETURN(s, kind.string());
   Material m;
   if (s == "heterogeneous") {
     m.kind = MaterialKind::kHeterogeneous;
-    HC_RETURN_IF_ERROR(r.only_keys(doc, "", {"format", "version", "kind", "elements"}));
-    HC_ASSIGN_OR_RETURN(const Json* elements, r.member(doc, "", "elements"));
-    HC_RETURN_IF_ERROR(r.array(*elements, "elements", 1));
-    for (std::size_t i = 0; i < elements->size(); ++i) {
-      HC_ASSIGN_OR_RETURN(StrainRbf rbf, read_rbf(r, (*elements)[i], index("elements", i)));
+    HC_RETURN_IF_ERROR(root.only_keys({"format", "version", "kind", "elements"}));
+    HC_ASSIGN_OR_RETURN(const JsonNode elements, root.member("elements"));
+    HC_RETURN_IF_ERROR(elements.expect_array(1));
+    for (std::size_t i = 0; i < elements.size(); ++i) {
+      HC_ASSIGN_OR_RETURN(StrainRbf rbf, read_rbf(elements[i]));
       m.rbfs.push_back(std::move(rbf));
     }
   } else if (s == "base") {
     m.kind = MaterialKind::kBase;
     HC_RETURN_IF_ERROR(
-        r.only_keys(doc, "", {"format", "version", "kind", "materials", "element_material"}));
-    HC_ASSIGN_OR_RETURN(const Json* materials, r.member(doc, "", "materials"));
-    HC_RETURN_IF_ERROR(r.array(*materials, "materials", 1));
-    for (std::size_t i = 0; i < materials->size(); ++i) {
-      const Json& mj = (*materials)[i];
-      const std::string path = index("materials", i);
-      HC_RETURN_IF_ERROR(r.object(mj, path));
-      HC_RETURN_IF_ERROR(r.only_keys(mj, path, {"name", "rbf"}));
-      HC_ASSIGN_OR_RETURN(const Json* nm, r.member(mj, path, "name"));
+        root.only_keys({"format", "version", "kind", "materials", "element_material"}));
+    HC_ASSIGN_OR_RETURN(const JsonNode materials, root.member("materials"));
+    HC_RETURN_IF_ERROR(materials.expect_array(1));
+    for (std::size_t i = 0; i < materials.size(); ++i) {
+      const JsonNode mj = materials[i];
+      HC_RETURN_IF_ERROR(mj.only_keys({"name", "rbf"}));
       std::string material_name;
-      HC_RETURN_IF_ERROR(r.string(*nm, join(path, "name"), &material_name));
-      HC_ASSIGN_OR_RETURN(const Json* rj, r.member(mj, path, "rbf"));
-      HC_ASSIGN_OR_RETURN(StrainRbf rbf, read_rbf(r, *rj, join(path, "rbf")));
+      HC_RETURN_IF_ERROR(mj.get("name", material_name));
+      HC_ASSIGN_OR_RETURN(const JsonNode rj, mj.member("rbf"));
+      HC_ASSIGN_OR_RETURN(StrainRbf rbf, read_rbf(rj));
       m.names.push_back(std::move(material_name));
       m.rbfs.push_back(std::move(rbf));
     }
-    if (const Json* em = r.optional(doc, "element_material")) {
-      HC_RETURN_IF_ERROR(r.array(*em, "element_material", 1));
+    if (const auto em = root.find("element_material")) {
+      HC_RETURN_IF_ERROR(em->expect_array(1));
       for (std::size_t i = 0; i < em->size(); ++i) {
-        long long k = 0;
-        HC_RETURN_IF_ERROR(r.integer((*em)[i], index("element_material", i), 0,
-                                     static_cast<long long>(m.rbfs.size()) - 1, &k));
+        HC_ASSIGN_OR_RETURN(const std::size_t k, (*em)[i].index(m.rbfs.size()));
         m.element_material.push_back(static_cast<int>(k));
       }
     }
   } else {
-    return r.error("kind", fmt::format("unknown kind '{}' (expected heterogeneous or base)", s));
+    return kind.error(fmt::format("unknown kind '{}' (expected heterogeneous or base)", s));
   }
   if (Status st = m.validate(); !st.ok()) return st.with_context(std::string(name));
   return m;

@@ -7,15 +7,11 @@
 #include <set>
 
 #include "common/file_io.h"
+#include "common/json_reader.h"
 #include "common/tet_mesh_io.h"
-#include "json_fields.h"
 
 namespace hc::material {
 namespace {
-
-using detail::FieldReader;
-using detail::index;
-using detail::join;
 
 constexpr std::string_view kProbeShapes[] = {"sphere", "flat", "mesh", "none"};
 
@@ -51,120 +47,112 @@ Status validate_mesh(const TetMesh& mesh, std::string_view where) {
   return {};
 }
 
-Result<TetMesh> read_inline_mesh(const FieldReader& r, const Json& j) {
-  HC_ASSIGN_OR_RETURN(const Json* nodes, r.member(j, "mesh", "nodes"));
-  HC_ASSIGN_OR_RETURN(const Json* tets, r.member(j, "mesh", "tets"));
-  HC_RETURN_IF_ERROR(r.array(*nodes, "mesh.nodes", 4));
-  HC_RETURN_IF_ERROR(r.array(*tets, "mesh.tets", 1));
+Result<TetMesh> read_inline_mesh(const JsonNode& j) {
+  HC_ASSIGN_OR_RETURN(const JsonNode nodes, j.member("nodes"));
+  HC_ASSIGN_OR_RETURN(const JsonNode tets, j.member("tets"));
+  HC_RETURN_IF_ERROR(nodes.expect_array(4));
+  HC_RETURN_IF_ERROR(tets.expect_array(1));
   TetMesh mesh;
-  mesh.nodes.resize(static_cast<Eigen::Index>(nodes->size()), 3);
-  for (std::size_t i = 0; i < nodes->size(); ++i) {
-    Eigen::Vector3d p;
-    HC_RETURN_IF_ERROR(r.vector<3>((*nodes)[i], index("mesh.nodes", i), &p));
+  mesh.nodes.resize(static_cast<Eigen::Index>(nodes.size()), 3);
+  for (std::size_t i = 0; i < nodes.size(); ++i) {
+    HC_ASSIGN_OR_RETURN(const Eigen::Vector3d p, nodes[i].vector<3>());
     mesh.nodes.row(static_cast<Eigen::Index>(i)) = p.transpose();
   }
-  mesh.tets.resize(static_cast<Eigen::Index>(tets->size()), 4);
-  for (std::size_t t = 0; t < tets->size(); ++t) {
-    const Json& tet = (*tets)[t];
-    const std::string path = index("mesh.tets", t);
-    if (!tet.is_array() || tet.size() != 4)
-      return r.error(path, "expected an array of 4 node indices");
+  mesh.tets.resize(static_cast<Eigen::Index>(tets.size()), 4);
+  for (std::size_t t = 0; t < tets.size(); ++t) {
+    const JsonNode tet = tets[t];
+    HC_RETURN_IF_ERROR(tet.expect_array_of(4, "node indices"));
     for (std::size_t k = 0; k < 4; ++k) {
-      int n = 0;
-      HC_RETURN_IF_ERROR(r.index_in(tet[k], index(path, k), mesh.num_nodes(), &n));
-      mesh.tets(static_cast<Eigen::Index>(t), static_cast<Eigen::Index>(k)) = n;
+      HC_ASSIGN_OR_RETURN(const std::size_t n,
+                          tet[k].index(static_cast<std::size_t>(mesh.num_nodes())));
+      mesh.tets(static_cast<Eigen::Index>(t), static_cast<Eigen::Index>(k)) = static_cast<int>(n);
     }
   }
   return mesh;
 }
 
-Status read_probe(const FieldReader& r, const Json& j, const std::string& path, ProbePose* probe) {
-  HC_RETURN_IF_ERROR(r.object(j, path));
-  HC_RETURN_IF_ERROR(
-      r.only_keys(j, path, {"shape", "radius_m", "position_m", "direction", "mesh"}));
-  HC_ASSIGN_OR_RETURN(const Json* shape, r.member(j, path, "shape"));
-  HC_RETURN_IF_ERROR(r.string(*shape, join(path, "shape"), &probe->shape));
+Status read_probe(const JsonNode& j, ProbePose* probe) {
+  HC_RETURN_IF_ERROR(j.only_keys({"shape", "radius_m", "position_m", "direction", "mesh"}));
+  HC_ASSIGN_OR_RETURN(const JsonNode shape, j.member("shape"));
+  HC_ASSIGN_OR_RETURN(probe->shape, shape.string());
   if (std::find(std::begin(kProbeShapes), std::end(kProbeShapes), probe->shape) ==
       std::end(kProbeShapes))
-    return r.error(join(path, "shape"),
-                   fmt::format("unknown probe shape '{}' (expected sphere, flat, mesh or none)",
-                               probe->shape));
-  if (const Json* v = r.optional(j, "radius_m"))
-    HC_RETURN_IF_ERROR(r.number(*v, join(path, "radius_m"), &probe->radius_m));
-  if (const Json* v = r.optional(j, "position_m"))
-    HC_RETURN_IF_ERROR(r.vector<3>(*v, join(path, "position_m"), &probe->position_m));
-  if (const Json* v = r.optional(j, "direction"))
-    HC_RETURN_IF_ERROR(r.vector<3>(*v, join(path, "direction"), &probe->direction));
-  if (const Json* v = r.optional(j, "mesh"))
-    HC_RETURN_IF_ERROR(r.string(*v, join(path, "mesh"), &probe->mesh));
+    return shape.error(fmt::format("unknown probe shape '{}' (expected sphere, flat, mesh or none)",
+                                   probe->shape));
+  if (const auto v = j.find("radius_m")) {
+    HC_ASSIGN_OR_RETURN(probe->radius_m, v->number());
+  }
+  if (const auto v = j.find("position_m")) {
+    HC_ASSIGN_OR_RETURN(probe->position_m, v->vector<3>());
+  }
+  if (const auto v = j.find("direction")) {
+    HC_ASSIGN_OR_RETURN(probe->direction, v->vector<3>());
+  }
+  if (const auto v = j.find("mesh")) {
+    HC_ASSIGN_OR_RETURN(probe->mesh, v->string());
+  }
   return {};
 }
 
-Result<Example> read_example(const FieldReader& r, const Json& j, const std::string& path,
-                             Eigen::Index num_nodes) {
-  Example ex;
-  HC_RETURN_IF_ERROR(r.object(j, path));
-  HC_RETURN_IF_ERROR(
-      r.only_keys(j, path, {"name", "probe", "forces", "positions_m", "visible", "fixed_nodes"}));
-  if (const Json* v = r.optional(j, "name"))
-    HC_RETURN_IF_ERROR(r.string(*v, join(path, "name"), &ex.name));
-  if (const Json* v = r.optional(j, "probe"))
-    HC_RETURN_IF_ERROR(read_probe(r, *v, join(path, "probe"), &ex.probe));
+// A node index of a mesh with `num_nodes` nodes.
+Result<int> node_index(const JsonNode& j, Eigen::Index num_nodes) {
+  HC_ASSIGN_OR_RETURN(const std::size_t n, j.index(static_cast<std::size_t>(num_nodes)));
+  return static_cast<int>(n);
+}
 
-  HC_ASSIGN_OR_RETURN(const Json* forces, r.member(j, path, "forces"));
-  const std::string fpath = join(path, "forces");
-  HC_RETURN_IF_ERROR(r.array(*forces, fpath));
-  for (std::size_t i = 0; i < forces->size(); ++i) {
-    const Json& f = (*forces)[i];
-    const std::string p = index(fpath, i);
-    HC_RETURN_IF_ERROR(r.object(f, p));
-    HC_RETURN_IF_ERROR(r.only_keys(f, p, {"node", "force_n"}));
+Result<Example> read_example(const JsonNode& j, Eigen::Index num_nodes) {
+  Example ex;
+  HC_RETURN_IF_ERROR(
+      j.only_keys({"name", "probe", "forces", "positions_m", "visible", "fixed_nodes"}));
+  if (const auto v = j.find("name")) {
+    HC_ASSIGN_OR_RETURN(ex.name, v->string());
+  }
+  if (const auto v = j.find("probe")) HC_RETURN_IF_ERROR(read_probe(*v, &ex.probe));
+
+  HC_ASSIGN_OR_RETURN(const JsonNode forces, j.member("forces"));
+  HC_RETURN_IF_ERROR(forces.expect_array());
+  for (std::size_t i = 0; i < forces.size(); ++i) {
+    const JsonNode f = forces[i];
+    HC_RETURN_IF_ERROR(f.only_keys({"node", "force_n"}));
     NodalForce nf;
-    HC_ASSIGN_OR_RETURN(const Json* node, r.member(f, p, "node"));
-    HC_RETURN_IF_ERROR(r.index_in(*node, join(p, "node"), num_nodes, &nf.node));
-    HC_ASSIGN_OR_RETURN(const Json* fn, r.member(f, p, "force_n"));
-    HC_RETURN_IF_ERROR(r.vector<3>(*fn, join(p, "force_n"), &nf.force_n));
+    HC_ASSIGN_OR_RETURN(const JsonNode node, f.member("node"));
+    HC_ASSIGN_OR_RETURN(nf.node, node_index(node, num_nodes));
+    HC_ASSIGN_OR_RETURN(const JsonNode fn, f.member("force_n"));
+    HC_ASSIGN_OR_RETURN(nf.force_n, fn.vector<3>());
     ex.forces.push_back(nf);
   }
 
-  HC_ASSIGN_OR_RETURN(const Json* positions, r.member(j, path, "positions_m"));
-  const std::string ppath = join(path, "positions_m");
-  HC_RETURN_IF_ERROR(r.array(*positions, ppath));
-  if (static_cast<Eigen::Index>(positions->size()) != num_nodes)
-    return r.error(ppath, fmt::format("expected {} positions (one per mesh node), got {}",
-                                      num_nodes, positions->size()));
+  HC_ASSIGN_OR_RETURN(const JsonNode positions, j.member("positions_m"));
+  HC_RETURN_IF_ERROR(positions.expect_array());
+  if (static_cast<Eigen::Index>(positions.size()) != num_nodes)
+    return positions.error(fmt::format("expected {} positions (one per mesh node), got {}",
+                                       num_nodes, positions.size()));
   ex.positions_m.resize(num_nodes, 3);
-  for (std::size_t i = 0; i < positions->size(); ++i) {
-    Eigen::Vector3d p;
-    HC_RETURN_IF_ERROR(r.vector<3>((*positions)[i], index(ppath, i), &p));
+  for (std::size_t i = 0; i < positions.size(); ++i) {
+    HC_ASSIGN_OR_RETURN(const Eigen::Vector3d p, positions[i].vector<3>());
     ex.positions_m.row(static_cast<Eigen::Index>(i)) = p.transpose();
   }
 
   ex.visible.assign(static_cast<std::size_t>(num_nodes), 1);
-  if (const Json* vis = r.optional(j, "visible")) {
-    const std::string vpath = join(path, "visible");
-    HC_RETURN_IF_ERROR(r.array(*vis, vpath));
+  if (const auto vis = j.find("visible")) {
+    HC_RETURN_IF_ERROR(vis->expect_array());
     if (static_cast<Eigen::Index>(vis->size()) != num_nodes)
-      return r.error(vpath, fmt::format("expected {} flags (one per mesh node), got {}", num_nodes,
-                                        vis->size()));
+      return vis->error(
+          fmt::format("expected {} flags (one per mesh node), got {}", num_nodes, vis->size()));
     for (std::size_t i = 0; i < vis->size(); ++i) {
-      const Json& v = (*vis)[i];
-      if (v.is_boolean()) {
-        ex.visible[i] = v.get<bool>() ? 1 : 0;
+      const JsonNode v = (*vis)[i];
+      if (v.json().is_boolean()) {
+        ex.visible[i] = v.json().get<bool>() ? 1 : 0;
       } else {
-        long long b = 0;
-        HC_RETURN_IF_ERROR(r.integer(v, index(vpath, i), 0, 1, &b));
-        ex.visible[i] = static_cast<std::uint8_t>(b);
+        HC_ASSIGN_OR_RETURN(ex.visible[i], v.integer<std::uint8_t>(Bounds::between(0, 1)));
       }
     }
   }
 
-  HC_ASSIGN_OR_RETURN(const Json* fixed, r.member(j, path, "fixed_nodes"));
-  const std::string xpath = join(path, "fixed_nodes");
-  HC_RETURN_IF_ERROR(r.array(*fixed, xpath));
-  for (std::size_t i = 0; i < fixed->size(); ++i) {
-    int n = 0;
-    HC_RETURN_IF_ERROR(r.index_in((*fixed)[i], index(xpath, i), num_nodes, &n));
+  HC_ASSIGN_OR_RETURN(const JsonNode fixed, j.member("fixed_nodes"));
+  HC_RETURN_IF_ERROR(fixed.expect_array());
+  for (std::size_t i = 0; i < fixed.size(); ++i) {
+    HC_ASSIGN_OR_RETURN(const int n, node_index(fixed[i], num_nodes));
     ex.fixed_nodes.push_back(n);
   }
   std::sort(ex.fixed_nodes.begin(), ex.fixed_nodes.end());
@@ -251,45 +239,36 @@ Status validate_samples(const Samples& samples) {
 Result<Samples> parse_samples(std::string_view text, std::string_view name,
                               const std::filesystem::path& base_dir) {
   HC_ASSIGN_OR_RETURN(Json doc, parse_json(text, name));
-  const FieldReader r(name);
-  HC_RETURN_IF_ERROR(r.object(doc, ""));
-  HC_RETURN_IF_ERROR(r.only_keys(doc, "", {"format", "version", "units", "mesh", "examples"}));
-  HC_ASSIGN_OR_RETURN(const Json* format, r.member(doc, "", "format"));
-  std::string format_name;
-  HC_RETURN_IF_ERROR(r.string(*format, "format", &format_name));
+  const JsonNode root(doc, name);
+  HC_RETURN_IF_ERROR(root.only_keys({"format", "version", "units", "mesh", "examples"}));
+  HC_ASSIGN_OR_RETURN(const JsonNode format, root.member("format"));
+  HC_ASSIGN_OR_RETURN(const std::string format_name, format.string());
   if (format_name != kSamplesFormat)
-    return r.error("format", fmt::format("expected '{}', got '{}'", kSamplesFormat, format_name));
-  HC_ASSIGN_OR_RETURN(const Json* version, r.member(doc, "", "version"));
-  long long v = 0;
-  if (!version->is_number_integer()) return r.error("version", "expected an integer");
-  HC_RETURN_IF_ERROR(r.integer(*version, "version", std::numeric_limits<long long>::min(),
-                               std::numeric_limits<long long>::max(), &v));
+    return format.error(fmt::format("expected '{}', got '{}'", kSamplesFormat, format_name));
+  HC_ASSIGN_OR_RETURN(const JsonNode version, root.member("version"));
+  HC_ASSIGN_OR_RETURN(const std::int64_t v, version.integer<std::int64_t>());
   if (v != kSamplesVersion)
-    return r.error("version", fmt::format("unknown version {} (this build reads version {})", v,
-                                          kSamplesVersion));
-  if (const Json* units = r.optional(doc, "units")) {
-    HC_RETURN_IF_ERROR(r.object(*units, "units"));
-    HC_RETURN_IF_ERROR(r.only_keys(*units, "units", {"length", "force"}));
-    std::string s;
-    if (const Json* l = r.optional(*units, "length")) {
-      HC_RETURN_IF_ERROR(r.string(*l, "units.length", &s));
-      if (s != "m") return r.error("units.length", fmt::format("expected 'm', got '{}'", s));
+    return version.error(
+        fmt::format("unknown version {} (this build reads version {})", v, kSamplesVersion));
+  if (const auto units = root.find("units")) {
+    HC_RETURN_IF_ERROR(units->only_keys({"length", "force"}));
+    if (const auto l = units->find("length")) {
+      HC_ASSIGN_OR_RETURN(const std::string u, l->string());
+      if (u != "m") return l->error(fmt::format("expected 'm', got '{}'", u));
     }
-    if (const Json* f = r.optional(*units, "force")) {
-      HC_RETURN_IF_ERROR(r.string(*f, "units.force", &s));
-      if (s != "N") return r.error("units.force", fmt::format("expected 'N', got '{}'", s));
+    if (const auto f = units->find("force")) {
+      HC_ASSIGN_OR_RETURN(const std::string u, f->string());
+      if (u != "N") return f->error(fmt::format("expected 'N', got '{}'", u));
     }
   }
 
   Samples samples;
-  HC_ASSIGN_OR_RETURN(const Json* mesh, r.member(doc, "", "mesh"));
-  HC_RETURN_IF_ERROR(r.object(*mesh, "mesh"));
-  if (mesh->contains("node_file") || mesh->contains("ele_file")) {
-    HC_RETURN_IF_ERROR(r.only_keys(*mesh, "mesh", {"node_file", "ele_file"}));
-    HC_ASSIGN_OR_RETURN(const Json* nf, r.member(*mesh, "mesh", "node_file"));
-    HC_ASSIGN_OR_RETURN(const Json* ef, r.member(*mesh, "mesh", "ele_file"));
-    HC_RETURN_IF_ERROR(r.string(*nf, "mesh.node_file", &samples.node_file));
-    HC_RETURN_IF_ERROR(r.string(*ef, "mesh.ele_file", &samples.ele_file));
+  HC_ASSIGN_OR_RETURN(const JsonNode mesh, root.member("mesh"));
+  HC_RETURN_IF_ERROR(mesh.expect_object());
+  if (mesh.has("node_file") || mesh.has("ele_file")) {
+    HC_RETURN_IF_ERROR(mesh.only_keys({"node_file", "ele_file"}));
+    HC_RETURN_IF_ERROR(mesh.get("node_file", samples.node_file));
+    HC_RETURN_IF_ERROR(mesh.get("ele_file", samples.ele_file));
     const std::filesystem::path node_path = base_dir / samples.node_file;
     const std::filesystem::path ele_path = base_dir / samples.ele_file;
     HC_ASSIGN_OR_RETURN(std::string node_bytes, read_file(node_path));
@@ -298,17 +277,16 @@ Result<Samples> parse_samples(std::string_view text, std::string_view name,
     if (!m.ok()) return m.status().with_context(std::string(name));
     samples.mesh = std::move(m).value();
   } else {
-    HC_RETURN_IF_ERROR(r.only_keys(*mesh, "mesh", {"nodes", "tets"}));
-    HC_ASSIGN_OR_RETURN(samples.mesh, read_inline_mesh(r, *mesh));
+    HC_RETURN_IF_ERROR(mesh.only_keys({"nodes", "tets"}));
+    HC_ASSIGN_OR_RETURN(samples.mesh, read_inline_mesh(mesh));
   }
   if (Status s = validate_mesh(samples.mesh, "mesh"); !s.ok())
     return s.with_context(std::string(name));
 
-  HC_ASSIGN_OR_RETURN(const Json* examples, r.member(doc, "", "examples"));
-  HC_RETURN_IF_ERROR(r.array(*examples, "examples", 1));
-  for (std::size_t i = 0; i < examples->size(); ++i) {
-    HC_ASSIGN_OR_RETURN(Example ex, read_example(r, (*examples)[i], index("examples", i),
-                                                 samples.mesh.num_nodes()));
+  HC_ASSIGN_OR_RETURN(const JsonNode examples, root.member("examples"));
+  HC_RETURN_IF_ERROR(examples.expect_array(1));
+  for (std::size_t i = 0; i < examples.size(); ++i) {
+    HC_ASSIGN_OR_RETURN(Example ex, read_example(examples[i], samples.mesh.num_nodes()));
     samples.examples.push_back(std::move(ex));
   }
   if (Status s = validate_samples(samples); !s.ok()) return s.with_context(std::string(name));

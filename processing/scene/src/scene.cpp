@@ -2,11 +2,11 @@
 
 #include <chrono>
 #include <cmath>
-#include <set>
 #include <string>
 
 #include "common/file_io.h"
 #include "common/json.h"
+#include "common/json_reader.h"
 #include "common/mesh_io.h"
 #include "processing/fem/corotational.h"
 #include "processing/fem/incremental.h"
@@ -21,254 +21,170 @@ namespace hc::scene {
 
 namespace {
 
-// Reading helpers: every failure names the JSON key path.
-Status key_error(const std::string& key, const std::string& what) {
-  return invalid_argument("scene: " + key + ": " + what);
-}
-
-Status check_keys(const Json& obj, const std::string& path, const std::set<std::string>& allowed) {
-  for (auto it = obj.begin(); it != obj.end(); ++it) {
-    if (allowed.count(it.key()) == 0) return key_error(path + "." + it.key(), "unknown key");
-  }
-  return {};
-}
-
-Result<const Json*> member(const Json& obj, const std::string& path, const std::string& key) {
-  if (!obj.is_object()) return key_error(path, "expected an object");
-  auto it = obj.find(key);
-  if (it == obj.end()) return key_error(path + "." + key, "missing");
-  return &*it;
-}
-
-Result<double> number(const Json& j, const std::string& path) {
-  if (!j.is_number()) return key_error(path, "expected a number");
-  const double v = j.get<double>();
-  if (!std::isfinite(v)) return key_error(path, "not a finite number");
-  return v;
-}
-
-Result<double> positive(const Json& j, const std::string& path) {
-  HC_ASSIGN_OR_RETURN(double v, number(j, path));
-  if (!(v > 0)) return key_error(path, "must be > 0, got " + std::to_string(v));
-  return v;
-}
-
-Result<Eigen::Vector3d> vec3(const Json& j, const std::string& path) {
-  if (!j.is_array() || j.size() != 3) return key_error(path, "expected an array of 3 numbers");
-  Eigen::Vector3d v;
-  for (int i = 0; i < 3; ++i) {
-    HC_ASSIGN_OR_RETURN(v(i),
-                        number(j[static_cast<size_t>(i)], path + "[" + std::to_string(i) + "]"));
-  }
-  return v;
-}
-
-Result<std::filesystem::path> path_value(const Json& j, const std::string& key,
-                                         const std::filesystem::path& base) {
-  if (!j.is_string() || j.get<std::string>().empty()) return key_error(key, "expected a file path");
-  std::filesystem::path p = j.get<std::string>();
+// A file path, relative to the scene's folder unless absolute.
+Result<std::filesystem::path> path_value(const JsonNode& j, const std::filesystem::path& base) {
+  if (!j.json().is_string() || j.json().get<std::string>().empty())
+    return j.error("expected a file path, got " + describe_json(j.json()));
+  std::filesystem::path p = j.json().get<std::string>();
   if (p.is_relative()) p = base / p;
   return p;
 }
 
 // {"youngs_pa": E, "poisson": ν} and, when `stiffening` is given (neo-Hookean materials), an
 // optional "stiffening": β ≥ 0 (default 0).
-Status parse_youngs_poisson(const Json& j, const std::string& path, double* e, double* nu,
+Status parse_youngs_poisson(const JsonNode& j, double* e, double* nu,
                             double* stiffening = nullptr) {
-  if (!j.is_object()) return key_error(path, "expected an object");
   if (stiffening != nullptr) {
-    HC_RETURN_IF_ERROR(check_keys(j, path, {"youngs_pa", "poisson", "stiffening"}));
+    HC_RETURN_IF_ERROR(j.only_keys({"youngs_pa", "poisson", "stiffening"}));
+    HC_RETURN_IF_ERROR(j.optional("stiffening", *stiffening, Bounds::non_negative()));
   } else {
-    HC_RETURN_IF_ERROR(check_keys(j, path, {"youngs_pa", "poisson"}));
+    HC_RETURN_IF_ERROR(j.only_keys({"youngs_pa", "poisson"}));
   }
-  HC_ASSIGN_OR_RETURN(const Json* je, member(j, path, "youngs_pa"));
-  HC_ASSIGN_OR_RETURN(const Json* jn, member(j, path, "poisson"));
-  HC_ASSIGN_OR_RETURN(*e, number(*je, path + ".youngs_pa"));
-  HC_ASSIGN_OR_RETURN(*nu, number(*jn, path + ".poisson"));
-  if (stiffening != nullptr && j.contains("stiffening")) {
-    HC_ASSIGN_OR_RETURN(*stiffening, number(j["stiffening"], path + ".stiffening"));
-    if (!(*stiffening >= 0)) return key_error(path + ".stiffening", "must be >= 0");
-  }
-  return fem::validate_youngs_poisson(*e, *nu).with_context("scene: " + path);
+  HC_RETURN_IF_ERROR(j.get("youngs_pa", *e));
+  HC_RETURN_IF_ERROR(j.get("poisson", *nu));
+  return fem::validate_youngs_poisson(*e, *nu).with_context(j.path());
 }
 
-Status parse_specimen(const Json& j, const std::filesystem::path& base, SpecimenSpec* s) {
-  const std::string p = "specimen";
-  if (!j.is_object()) return key_error(p, "expected an object");
-  HC_RETURN_IF_ERROR(
-      check_keys(j, p, {"box_m", "max_tet_volume_m3", "cells", "mesh", "scale_to_m"}));
-  if (j.contains("max_tet_volume_m3")) {
-    HC_ASSIGN_OR_RETURN(s->max_tet_volume_m3,
-                        positive(j["max_tet_volume_m3"], p + ".max_tet_volume_m3"));
+Status parse_specimen(const JsonNode& j, const std::filesystem::path& base, SpecimenSpec* s) {
+  HC_RETURN_IF_ERROR(j.only_keys({"box_m", "max_tet_volume_m3", "cells", "mesh", "scale_to_m"}));
+  HC_RETURN_IF_ERROR(j.optional("max_tet_volume_m3", s->max_tet_volume_m3, Bounds::positive()));
+  if (j.has("box_m") == j.has("mesh")) {
+    return j.error("needs exactly one of \"box_m\" and \"mesh\"");
   }
-  if (j.contains("box_m") == j.contains("mesh")) {
-    return key_error(p, "needs exactly one of \"box_m\" and \"mesh\"");
-  }
-  if (j.contains("box_m")) {
+  if (j.has("box_m")) {
     s->kind = SpecimenSpec::Kind::kBox;
-    HC_ASSIGN_OR_RETURN(s->box_m, vec3(j["box_m"], p + ".box_m"));
-    if (!(s->box_m.minCoeff() > 0)) return key_error(p + ".box_m", "sizes must be > 0");
-    if (j.contains("cells")) {
-      const Json& c = j["cells"];
-      if (!c.is_array() || c.size() != 3) return key_error(p + ".cells", "expected 3 integers");
-      Eigen::Vector3i cells;
-      for (int i = 0; i < 3; ++i) {
-        const Json& ci = c[static_cast<size_t>(i)];
-        if (!ci.is_number_integer() || ci.get<long long>() < 1 || ci.get<long long>() > 1000) {
-          return key_error(p + ".cells", "expected integers in [1, 1000]");
-        }
-        cells(i) = static_cast<int>(ci.get<long long>());
+    HC_ASSIGN_OR_RETURN(const JsonNode box, j.member("box_m"));
+    HC_ASSIGN_OR_RETURN(s->box_m, box.vector<3>());
+    if (!(s->box_m.minCoeff() > 0)) return box.error("sizes must be > 0");
+    if (const auto c = j.find("cells")) {
+      std::array<int, 3> cells{};
+      HC_RETURN_IF_ERROR(c->read(cells, Bounds::between(1, 1000)));
+      if (static_cast<long long>(cells[0]) * cells[1] * cells[2] > 2000000) {
+        return c->error("more than 2,000,000 cells");
       }
-      if (static_cast<long long>(cells(0)) * cells(1) * cells(2) > 2000000) {
-        return key_error(p + ".cells", "more than 2,000,000 cells");
-      }
-      s->cells = cells;
+      s->cells = Eigen::Vector3i(cells[0], cells[1], cells[2]);
     } else if (s->max_tet_volume_m3 > 0 && s->box_m.prod() / s->max_tet_volume_m3 > 5e6) {
-      return key_error(p + ".max_tet_volume_m3", "would give more than ~5,000,000 tets");
+      HC_ASSIGN_OR_RETURN(const JsonNode v, j.member("max_tet_volume_m3"));
+      return v.error("would give more than ~5,000,000 tets");
     }
   } else {
     s->kind = SpecimenSpec::Kind::kMesh;
-    HC_ASSIGN_OR_RETURN(s->mesh, path_value(j["mesh"], p + ".mesh", base));
-    if (j.contains("cells")) return key_error(p + ".cells", "only for box specimens");
+    HC_ASSIGN_OR_RETURN(const JsonNode mesh, j.member("mesh"));
+    HC_ASSIGN_OR_RETURN(s->mesh, path_value(mesh, base));
+    if (const auto c = j.find("cells")) return c->error("only for box specimens");
   }
-  if (j.contains("scale_to_m")) {
-    HC_ASSIGN_OR_RETURN(s->scale_to_m, positive(j["scale_to_m"], p + ".scale_to_m"));
-  }
-  return {};
+  return j.optional("scale_to_m", s->scale_to_m, Bounds::positive());
 }
 
-Status parse_material(const Json& j, const std::filesystem::path& base, MaterialSpec* m) {
-  const std::string p = "material";
-  if (j.is_array()) {
+Status parse_material(const JsonNode& j, const std::filesystem::path& base, MaterialSpec* m) {
+  if (j.json().is_array()) {
     m->kind = MaterialKind::kLayered;
-    if (j.empty()) return key_error(p, "empty layer list");
-    for (size_t i = 0; i < j.size(); ++i) {
-      const std::string lp = p + "[" + std::to_string(i) + "]";
-      const Json& l = j[i];
-      if (!l.is_object()) return key_error(lp, "expected an object");
-      HC_RETURN_IF_ERROR(check_keys(l, lp, {"z_m", "linear", "neo_hookean"}));
+    if (j.size() == 0) return j.error("empty layer list");
+    for (std::size_t i = 0; i < j.size(); ++i) {
+      const JsonNode l = j[i];
+      HC_RETURN_IF_ERROR(l.only_keys({"z_m", "linear", "neo_hookean"}));
       LayerSpec layer;
-      HC_ASSIGN_OR_RETURN(const Json* z, member(l, lp, "z_m"));
-      if (!z->is_array() || z->size() != 2)
-        return key_error(lp + ".z_m", "expected [z_min, z_max]");
-      HC_ASSIGN_OR_RETURN(layer.z_min_m, number((*z)[0], lp + ".z_m[0]"));
-      HC_ASSIGN_OR_RETURN(layer.z_max_m, number((*z)[1], lp + ".z_m[1]"));
-      if (!(layer.z_max_m > layer.z_min_m)) return key_error(lp + ".z_m", "needs z_min < z_max");
-      if (l.contains("linear") == l.contains("neo_hookean")) {
-        return key_error(lp, "needs exactly one of \"linear\" and \"neo_hookean\"");
+      HC_ASSIGN_OR_RETURN(const JsonNode z, l.member("z_m"));
+      HC_ASSIGN_OR_RETURN(const Eigen::Vector2d zr, z.vector<2>());
+      layer.z_min_m = zr.x();
+      layer.z_max_m = zr.y();
+      if (!(layer.z_max_m > layer.z_min_m)) return z.error("needs z_min < z_max");
+      if (l.has("linear") == l.has("neo_hookean")) {
+        return l.error("needs exactly one of \"linear\" and \"neo_hookean\"");
       }
-      layer.neo_hookean = l.contains("neo_hookean");
-      HC_RETURN_IF_ERROR(parse_youngs_poisson(layer.neo_hookean ? l["neo_hookean"] : l["linear"],
-                                              lp + (layer.neo_hookean ? ".neo_hookean" : ".linear"),
-                                              &layer.youngs_pa, &layer.poisson,
+      layer.neo_hookean = l.has("neo_hookean");
+      HC_ASSIGN_OR_RETURN(const JsonNode law,
+                          l.member(layer.neo_hookean ? "neo_hookean" : "linear"));
+      HC_RETURN_IF_ERROR(parse_youngs_poisson(law, &layer.youngs_pa, &layer.poisson,
                                               layer.neo_hookean ? &layer.stiffening : nullptr));
       if (!m->layers.empty() && m->layers.front().neo_hookean != layer.neo_hookean) {
-        return key_error(p, "layers must all be \"linear\" or all \"neo_hookean\"");
+        return j.error("layers must all be \"linear\" or all \"neo_hookean\"");
       }
       m->layers.push_back(layer);
     }
     return {};
   }
-  if (!j.is_object()) return key_error(p, "expected an object or a list of layers");
-  HC_RETURN_IF_ERROR(check_keys(j, p, {"linear", "neo_hookean", "file"}));
-  if (j.size() != 1)
-    return key_error(p, "needs exactly one of \"linear\", \"neo_hookean\", \"file\"");
-  if (j.contains("file")) {
+  if (!j.json().is_object()) {
+    return j.error("expected an object or a list of layers, got " + describe_json(j.json()));
+  }
+  HC_RETURN_IF_ERROR(j.only_keys({"linear", "neo_hookean", "file"}));
+  if (j.json().size() != 1)
+    return j.error("needs exactly one of \"linear\", \"neo_hookean\", \"file\"");
+  if (const auto file = j.find("file")) {
     m->kind = MaterialKind::kFile;
-    HC_ASSIGN_OR_RETURN(m->file, path_value(j["file"], p + ".file", base));
+    HC_ASSIGN_OR_RETURN(m->file, path_value(*file, base));
     return {};
   }
-  m->kind = j.contains("linear") ? MaterialKind::kLinear : MaterialKind::kNeoHookean;
-  const std::string sub = j.contains("linear") ? "linear" : "neo_hookean";
-  return parse_youngs_poisson(j[sub], p + "." + sub, &m->youngs_pa, &m->poisson,
+  m->kind = j.has("linear") ? MaterialKind::kLinear : MaterialKind::kNeoHookean;
+  HC_ASSIGN_OR_RETURN(const JsonNode law, j.member(j.has("linear") ? "linear" : "neo_hookean"));
+  return parse_youngs_poisson(law, &m->youngs_pa, &m->poisson,
                               m->kind == MaterialKind::kNeoHookean ? &m->stiffening : nullptr);
 }
 
-Status parse_probe(const Json& j, const std::filesystem::path& base, ProbeSpec* pr) {
-  const std::string p = "probe";
-  if (!j.is_object()) return key_error(p, "expected an object");
+Status parse_probe(const JsonNode& j, const std::filesystem::path& base, ProbeSpec* pr) {
   HC_RETURN_IF_ERROR(
-      check_keys(j, p, {"shape", "radius_m", "position_m", "direction", "mesh", "scale_to_m"}));
-  HC_ASSIGN_OR_RETURN(const Json* shape, member(j, p, "shape"));
-  if (!shape->is_string())
-    return key_error(p + ".shape", "expected \"sphere\", \"flat\" or \"mesh\"");
-  const std::string s = shape->get<std::string>();
-  if (s == "sphere") {
-    pr->shape = ProbeSpec::Shape::kSphere;
-  } else if (s == "flat") {
-    pr->shape = ProbeSpec::Shape::kFlat;
-  } else if (s == "mesh") {
-    pr->shape = ProbeSpec::Shape::kMesh;
-  } else {
-    return key_error(p + ".shape", "expected \"sphere\", \"flat\" or \"mesh\", got \"" + s + "\"");
-  }
+      j.only_keys({"shape", "radius_m", "position_m", "direction", "mesh", "scale_to_m"}));
+  std::string shape;
+  HC_RETURN_IF_ERROR(j.get("shape", shape, {"sphere", "flat", "mesh"}));
+  pr->shape = shape == "sphere" ? ProbeSpec::Shape::kSphere
+              : shape == "flat" ? ProbeSpec::Shape::kFlat
+                                : ProbeSpec::Shape::kMesh;
   if (pr->shape == ProbeSpec::Shape::kMesh) {
-    HC_ASSIGN_OR_RETURN(const Json* mesh, member(j, p, "mesh"));
-    HC_ASSIGN_OR_RETURN(pr->mesh, path_value(*mesh, p + ".mesh", base));
-    if (j.contains("scale_to_m")) {
-      HC_ASSIGN_OR_RETURN(pr->scale_to_m, positive(j["scale_to_m"], p + ".scale_to_m"));
-    }
+    HC_ASSIGN_OR_RETURN(const JsonNode mesh, j.member("mesh"));
+    HC_ASSIGN_OR_RETURN(pr->mesh, path_value(mesh, base));
+    HC_RETURN_IF_ERROR(j.optional("scale_to_m", pr->scale_to_m, Bounds::positive()));
   } else {
-    HC_ASSIGN_OR_RETURN(const Json* r, member(j, p, "radius_m"));
-    HC_ASSIGN_OR_RETURN(pr->radius_m, positive(*r, p + ".radius_m"));
+    HC_RETURN_IF_ERROR(j.get("radius_m", pr->radius_m, Bounds::positive()));
   }
-  HC_ASSIGN_OR_RETURN(const Json* pos, member(j, p, "position_m"));
-  HC_ASSIGN_OR_RETURN(pr->position_m, vec3(*pos, p + ".position_m"));
-  if (j.contains("direction")) {
-    HC_ASSIGN_OR_RETURN(pr->direction, vec3(j["direction"], p + ".direction"));
-    if (!(pr->direction.norm() > 1e-12)) return key_error(p + ".direction", "must not be zero");
+  HC_RETURN_IF_ERROR(j.get("position_m", pr->position_m));
+  if (const auto d = j.find("direction")) {
+    HC_ASSIGN_OR_RETURN(pr->direction, d->vector<3>());
+    if (!(pr->direction.norm() > 1e-12)) return d->error("must not be zero");
   }
   return {};
 }
 
-Status parse_load(const Json& j, fem::Load* load) {
-  const std::string p = "load";
-  if (!j.is_object()) return key_error(p, "expected an object");
-  HC_RETURN_IF_ERROR(check_keys(j, p, {"depth_m", "force_n"}));
-  if (j.size() != 1) return key_error(p, "needs exactly one of \"depth_m\" and \"force_n\"");
-  load->control = j.contains("depth_m") ? fem::LoadControl::kDepth : fem::LoadControl::kForce;
-  const std::string key = j.contains("depth_m") ? "depth_m" : "force_n";
-  HC_ASSIGN_OR_RETURN(load->value, positive(j[key], p + "." + key));
+Status parse_load(const JsonNode& j, fem::Load* load) {
+  HC_RETURN_IF_ERROR(j.only_keys({"depth_m", "force_n"}));
+  if (j.json().size() != 1) return j.error("needs exactly one of \"depth_m\" and \"force_n\"");
+  load->control = j.has("depth_m") ? fem::LoadControl::kDepth : fem::LoadControl::kForce;
+  return j.get(j.has("depth_m") ? "depth_m" : "force_n", load->value, Bounds::positive());
+}
+
+Status parse_fixed(const JsonNode& fixed, Scene* scene) {
+  if (fixed.json().is_string()) {
+    if (fixed.json().get<std::string>() != "bottom") {
+      return fixed.error("expected \"bottom\" or a list of node indices");
+    }
+    scene->fixed_bottom = true;
+  } else if (fixed.json().is_array()) {
+    scene->fixed_bottom = false;
+    if (fixed.size() == 0) return fixed.error("empty node list (the specimen would float)");
+    HC_RETURN_IF_ERROR(fixed.read(scene->fixed_nodes, Bounds::between(0, 1000000000)));
+  } else {
+    return fixed.error("expected \"bottom\" or a list of node indices, got " +
+                       describe_json(fixed.json()));
+  }
   return {};
 }
 
-Result<Scene> parse_scene_json(const Json& root, const std::filesystem::path& base) {
-  if (!root.is_object()) return invalid_argument("scene: expected a JSON object");
-  HC_RETURN_IF_ERROR(
-      check_keys(root, "scene", {"specimen", "material", "fixed", "probe", "load", "steps"}));
+Result<Scene> parse_scene_json(const JsonNode& root, const std::filesystem::path& base) {
+  HC_RETURN_IF_ERROR(root.only_keys({"specimen", "material", "fixed", "probe", "load", "steps"}));
   Scene scene;
   for (const char* key : {"specimen", "material", "fixed", "probe", "load"}) {
-    if (!root.contains(key)) return key_error(key, "missing");
+    if (!root.has(key)) return root.error(std::string(key) + ": missing");
   }
-  HC_RETURN_IF_ERROR(parse_specimen(root["specimen"], base, &scene.specimen));
-  HC_RETURN_IF_ERROR(parse_material(root["material"], base, &scene.material));
-  const Json& fixed = root["fixed"];
-  if (fixed.is_string()) {
-    if (fixed.get<std::string>() != "bottom") {
-      return key_error("fixed", "expected \"bottom\" or a list of node indices");
-    }
-    scene.fixed_bottom = true;
-  } else if (fixed.is_array()) {
-    scene.fixed_bottom = false;
-    if (fixed.empty()) return key_error("fixed", "empty node list (the specimen would float)");
-    for (const Json& n : fixed) {
-      if (!n.is_number_integer() || n.get<long long>() < 0 || n.get<long long>() > 1000000000LL) {
-        return key_error("fixed", "node indices must be non-negative integers");
-      }
-      scene.fixed_nodes.push_back(static_cast<int>(n.get<long long>()));
-    }
-  } else {
-    return key_error("fixed", "expected \"bottom\" or a list of node indices");
-  }
-  HC_RETURN_IF_ERROR(parse_probe(root["probe"], base, &scene.probe));
-  HC_RETURN_IF_ERROR(parse_load(root["load"], &scene.load));
-  if (root.contains("steps")) {
-    const Json& s = root["steps"];
-    if (!s.is_number_integer() || s.get<long long>() < 1 || s.get<long long>() > 10000) {
-      return key_error("steps", "expected an integer in [1, 10000]");
-    }
-    scene.steps = static_cast<int>(s.get<long long>());
-  }
+  HC_ASSIGN_OR_RETURN(const JsonNode specimen, root.member("specimen"));
+  HC_RETURN_IF_ERROR(parse_specimen(specimen, base, &scene.specimen));
+  HC_ASSIGN_OR_RETURN(const JsonNode material, root.member("material"));
+  HC_RETURN_IF_ERROR(parse_material(material, base, &scene.material));
+  HC_ASSIGN_OR_RETURN(const JsonNode fixed, root.member("fixed"));
+  HC_RETURN_IF_ERROR(parse_fixed(fixed, &scene));
+  HC_ASSIGN_OR_RETURN(const JsonNode probe, root.member("probe"));
+  HC_RETURN_IF_ERROR(parse_probe(probe, base, &scene.probe));
+  HC_ASSIGN_OR_RETURN(const JsonNode load, root.member("load"));
+  HC_RETURN_IF_ERROR(parse_load(load, &scene.load));
+  HC_RETURN_IF_ERROR(root.optional("steps", scene.steps, Bounds::between(1, 10000)));
   return scene;
 }
 
@@ -277,14 +193,7 @@ Result<Scene> parse_scene_json(const Json& root, const std::filesystem::path& ba
 Result<Scene> parse_scene(std::string_view text, std::string_view name,
                           const std::filesystem::path& base_dir) {
   HC_ASSIGN_OR_RETURN(Json root, parse_json(text, name));
-  try {
-    Result<Scene> r = parse_scene_json(root, base_dir);
-    if (!r.ok()) return r.status().with_context(std::string(name));
-    return r;
-  } catch (
-      const std::exception& e) {  // nlohmann type errors: a bug guard, values are checked above
-    return invalid_argument(std::string(name) + ": scene: " + e.what());
-  }
+  return parse_scene_json(JsonNode(root, name), base_dir);
 }
 
 Result<Scene> read_scene(const std::filesystem::path& path) {

@@ -1,112 +1,17 @@
 #include "rig_daemon/devices/codec.h"
 
-#include <nlohmann/json.hpp>
-
-#include <cmath>
-#include <limits>
+#include <array>
 #include <string>
-#include <type_traits>
+
+#include "common/json.h"
+#include "common/json_reader.h"
 
 namespace hc::devices {
 
 namespace {
 
-using Json = nlohmann::json;
-
 // Invalid UTF-8 in a string (a device's fault text) is replaced rather than thrown on.
 std::string dump(const Json& j) { return j.dump(-1, ' ', false, Json::error_handler_t::replace); }
-
-// Strict field readers: each records the first problem and leaves the value untouched.
-class Reader {
- public:
-  Reader(const Json& j, std::string_view type) : j_(j), type_(type) {}
-
-  template <typename T>
-  void req(const char* key, T& out) {
-    if (!status_.ok()) return;
-    auto it = j_.find(key);
-    if (it == j_.end()) {
-      status_ = invalid_argument(std::string(type_) + ": missing field '" + key + "'");
-      return;
-    }
-    get(*it, key, out);
-  }
-  template <typename T>
-  void opt(const char* key, std::optional<T>& out) {
-    if (!status_.ok()) return;
-    auto it = j_.find(key);
-    if (it == j_.end() || it->is_null()) return;
-    T v{};
-    if (get(*it, key, v)) out = v;
-  }
-  template <typename T, std::size_t N>
-  void req(const char* key, std::array<T, N>& out) {
-    if (!status_.ok()) return;
-    auto it = j_.find(key);
-    if (it == j_.end() || !it->is_array() || it->size() != N) {
-      status_ = invalid_argument(std::string(type_) + ": field '" + key + "' must be an array of " +
-                                 std::to_string(N) + " numbers");
-      return;
-    }
-    for (std::size_t i = 0; i < N; ++i) get((*it)[i], key, out[i]);
-  }
-  const Json* object(const char* key) {
-    if (!status_.ok()) return nullptr;
-    auto it = j_.find(key);
-    if (it == j_.end() || !it->is_object()) {
-      status_ = invalid_argument(std::string(type_) + ": field '" + key + "' must be an object");
-      return nullptr;
-    }
-    return &*it;
-  }
-  void fail(std::string message) {
-    if (status_.ok()) status_ = invalid_argument(std::string(type_) + ": " + message);
-  }
-  const Status& status() const { return status_; }
-
- private:
-  template <typename T>
-  bool get(const Json& v, const char* key, T& out) {
-    if constexpr (std::is_same_v<T, bool>) {
-      if (v.is_boolean()) {
-        out = v.get<bool>();
-        return true;
-      }
-    } else if constexpr (std::is_same_v<T, std::string>) {
-      if (v.is_string()) {
-        out = v.get<std::string>();
-        return true;
-      }
-    } else if constexpr (std::is_floating_point_v<T>) {
-      if (v.is_number()) {
-        out = v.get<double>();
-        return true;
-      }
-    } else if constexpr (std::is_integral_v<T>) {
-      if (v.is_number_unsigned()) {
-        const auto u = v.get<std::uint64_t>();
-        if (u <= static_cast<std::uint64_t>(std::numeric_limits<T>::max())) {
-          out = static_cast<T>(u);
-          return true;
-        }
-      } else if (v.is_number_integer()) {
-        const auto s = v.get<std::int64_t>();
-        if (std::is_signed_v<T> && s >= static_cast<std::int64_t>(std::numeric_limits<T>::min()) &&
-            s <= static_cast<std::int64_t>(std::numeric_limits<T>::max())) {
-          out = static_cast<T>(s);
-          return true;
-        }
-      }
-    }
-    status_ = invalid_argument(std::string(type_) + ": field '" + key +
-                               "' has the wrong type or is out of range");
-    return false;
-  }
-
-  const Json& j_;
-  std::string_view type_;
-  Status status_;
-};
 
 Result<Json> parse_object(std::string_view text, std::string_view type) {
   Json j = Json::parse(text.begin(), text.end(), nullptr, /*allow_exceptions=*/false);
@@ -120,22 +25,29 @@ void put_opt(Json& j, const char* key, const std::optional<T>& v) {
   if (v) j[key] = *v;
 }
 
-// JSON has no NaN/inf: non-finite doubles are written as null and read back as NaN.
-Json num(double v) { return std::isfinite(v) ? Json(v) : Json(nullptr); }
-
 Json pose_json(const ArmPose& p) {
-  return Json{
-      {"x_m", num(p.x_m)}, {"y_m", num(p.y_m)}, {"z_m", num(p.z_m)}, {"yaw_rad", num(p.yaw_rad)}};
+  return Json{{"x_m", finite_or_null(p.x_m)},
+              {"y_m", finite_or_null(p.y_m)},
+              {"z_m", finite_or_null(p.z_m)},
+              {"yaw_rad", finite_or_null(p.yaw_rad)}};
 }
-void read_pose(Reader& r, const char* key, ArmPose& p) {
-  const Json* o = r.object(key);
-  if (!o) return;
-  Reader pr(*o, key);
-  pr.req("x_m", p.x_m);
-  pr.req("y_m", p.y_m);
-  pr.req("z_m", p.z_m);
-  pr.req("yaw_rad", p.yaw_rad);
-  if (!pr.status().ok()) r.fail(pr.status().message());
+Status read_pose(const JsonNode& j, std::string_view key, ArmPose& p) {
+  HC_ASSIGN_OR_RETURN(const JsonNode o, j.member(key));
+  HC_RETURN_IF_ERROR(o.get("x_m", p.x_m));
+  HC_RETURN_IF_ERROR(o.get("y_m", p.y_m));
+  HC_RETURN_IF_ERROR(o.get("z_m", p.z_m));
+  return o.get("yaw_rad", p.yaw_rad);
+}
+
+// An array of N measurements (a null is a value that was not finite when written: NaN).
+template <std::size_t N>
+Status read_measurements(const JsonNode& j, std::string_view key, std::array<double, N>& out) {
+  HC_ASSIGN_OR_RETURN(const JsonNode a, j.member(key));
+  HC_RETURN_IF_ERROR(a.expect_array_of(N, "numbers"));
+  for (std::size_t i = 0; i < N; ++i) {
+    HC_ASSIGN_OR_RETURN(out[i], a[i].number_or_null());
+  }
+  return {};
 }
 
 constexpr std::string_view kTriggerEdgeSchema = R"({
@@ -267,7 +179,7 @@ std::string to_json(const TriggerEdge& e) {
 
 std::string to_json(const FsrSample& s) {
   Json j{{"raw", s.raw},
-         {"force_n", num(s.force_n)},
+         {"force_n", finite_or_null(s.force_n)},
          {"channel", s.channel},
          {"sequence", s.sequence},
          {"host_ns", s.host_ns}};
@@ -277,14 +189,18 @@ std::string to_json(const FsrSample& s) {
 }
 
 std::string to_json(const WrenchSample& s) {
-  Json j{{"counts", s.counts},
-         {"force_n", {num(s.force_n[0]), num(s.force_n[1]), num(s.force_n[2])}},
-         {"torque_nm", {num(s.torque_nm[0]), num(s.torque_nm[1]), num(s.torque_nm[2])}},
-         {"rdt_sequence", s.rdt_sequence},
-         {"ft_sequence", s.ft_sequence},
-         {"status", s.status},
-         {"sequence", s.sequence},
-         {"host_ns", s.host_ns}};
+  Json j{
+      {"counts", s.counts},
+      {"force_n",
+       {finite_or_null(s.force_n[0]), finite_or_null(s.force_n[1]), finite_or_null(s.force_n[2])}},
+      {"torque_nm",
+       {finite_or_null(s.torque_nm[0]), finite_or_null(s.torque_nm[1]),
+        finite_or_null(s.torque_nm[2])}},
+      {"rdt_sequence", s.rdt_sequence},
+      {"ft_sequence", s.ft_sequence},
+      {"status", s.status},
+      {"sequence", s.sequence},
+      {"host_ns", s.host_ns}};
   put_opt(j, "device_stamp_ns", s.device_stamp_ns);
   put_opt(j, "trigger_index", s.trigger_index);
   return dump(j);
@@ -293,8 +209,10 @@ std::string to_json(const WrenchSample& s) {
 std::string to_json(const ArmState& s) {
   Json j{{"pose", pose_json(s.pose)},
          {"target", pose_json(s.target)},
-         {"joints", {num(s.joints[0]), num(s.joints[1]), num(s.joints[2]), num(s.joints[3])}},
-         {"speed_m_s", num(s.speed_m_s)},
+         {"joints",
+          {finite_or_null(s.joints[0]), finite_or_null(s.joints[1]), finite_or_null(s.joints[2]),
+           finite_or_null(s.joints[3])}},
+         {"speed_m_s", finite_or_null(s.speed_m_s)},
          {"motion", std::string(to_string(s.motion))},
          {"homed", s.homed},
          {"fault_code", s.fault_code},
@@ -309,128 +227,98 @@ std::string to_json(const ArmState& s) {
 std::string to_json(const ArmCommand& c) {
   Json j{{"type", std::string(to_string(c.type))},
          {"target", pose_json(c.target)},
-         {"speed_m_s", num(c.speed_m_s)},
+         {"speed_m_s", finite_or_null(c.speed_m_s)},
          {"sequence", c.sequence}};
   return dump(j);
 }
 
 Result<TriggerEdge> trigger_edge_from_json(std::string_view text) {
-  HC_ASSIGN_OR_RETURN(Json j, parse_object(text, "hardcopy.TriggerEdge"));
-  Reader r(j, "hardcopy.TriggerEdge");
+  constexpr std::string_view kType = "hardcopy.TriggerEdge";
+  HC_ASSIGN_OR_RETURN(const Json j, parse_object(text, kType));
+  const JsonNode r(j, kType);
   TriggerEdge e;
-  r.req("index", e.index);
-  r.req("line", e.line);
-  r.req("rising", e.rising);
-  r.req("host_ns", e.host_ns);
-  r.req("device_counter", e.device_counter);
-  r.opt("device_stamp_ns", e.device_stamp_ns);
-  if (!r.status().ok()) return r.status();
+  HC_RETURN_IF_ERROR(r.get("index", e.index));
+  HC_RETURN_IF_ERROR(r.get("line", e.line));
+  HC_RETURN_IF_ERROR(r.get("rising", e.rising));
+  HC_RETURN_IF_ERROR(r.get("host_ns", e.host_ns));
+  HC_RETURN_IF_ERROR(r.get("device_counter", e.device_counter));
+  HC_RETURN_IF_ERROR(r.optional("device_stamp_ns", e.device_stamp_ns));
   return e;
 }
 
 Result<FsrSample> fsr_sample_from_json(std::string_view text) {
-  HC_ASSIGN_OR_RETURN(Json j, parse_object(text, "hardcopy.FsrSample"));
-  Reader r(j, "hardcopy.FsrSample");
+  constexpr std::string_view kType = "hardcopy.FsrSample";
+  HC_ASSIGN_OR_RETURN(const Json j, parse_object(text, kType));
+  const JsonNode r(j, kType);
   FsrSample s;
-  r.req("raw", s.raw);
-  if (j.contains("force_n") && j["force_n"].is_null())
-    s.force_n = std::numeric_limits<double>::quiet_NaN();
-  else
-    r.req("force_n", s.force_n);
-  r.req("channel", s.channel);
-  r.req("sequence", s.sequence);
-  r.req("host_ns", s.host_ns);
-  r.opt("device_stamp_ns", s.device_stamp_ns);
-  r.opt("trigger_index", s.trigger_index);
-  if (!r.status().ok()) return r.status();
+  HC_RETURN_IF_ERROR(r.get("raw", s.raw));
+  HC_ASSIGN_OR_RETURN(const JsonNode force, r.member("force_n"));
+  HC_ASSIGN_OR_RETURN(s.force_n, force.number_or_null());
+  HC_RETURN_IF_ERROR(r.get("channel", s.channel));
+  HC_RETURN_IF_ERROR(r.get("sequence", s.sequence));
+  HC_RETURN_IF_ERROR(r.get("host_ns", s.host_ns));
+  HC_RETURN_IF_ERROR(r.optional("device_stamp_ns", s.device_stamp_ns));
+  HC_RETURN_IF_ERROR(r.optional("trigger_index", s.trigger_index));
   return s;
 }
 
 Result<WrenchSample> wrench_sample_from_json(std::string_view text) {
-  HC_ASSIGN_OR_RETURN(Json j, parse_object(text, "hardcopy.WrenchSample"));
-  Reader r(j, "hardcopy.WrenchSample");
+  constexpr std::string_view kType = "hardcopy.WrenchSample";
+  HC_ASSIGN_OR_RETURN(const Json j, parse_object(text, kType));
+  const JsonNode r(j, kType);
   WrenchSample s;
-  r.req("counts", s.counts);
-  for (const char* key : {"force_n", "torque_nm"}) {
-    auto it = j.find(key);
-    if (it == j.end() || !it->is_array() || it->size() != 3) {
-      r.fail(std::string("field '") + key + "' must be an array of 3 numbers");
-      continue;
-    }
-    auto& dst = std::string_view(key) == "force_n" ? s.force_n : s.torque_nm;
-    for (std::size_t i = 0; i < 3; ++i) {
-      const Json& v = (*it)[i];
-      if (v.is_number())
-        dst[i] = v.get<double>();
-      else if (v.is_null())
-        dst[i] = std::numeric_limits<double>::quiet_NaN();
-      else
-        r.fail(std::string("field '") + key + "' must hold numbers");
-    }
-  }
-  r.req("rdt_sequence", s.rdt_sequence);
-  r.req("ft_sequence", s.ft_sequence);
-  r.req("status", s.status);
-  r.req("sequence", s.sequence);
-  r.req("host_ns", s.host_ns);
-  r.opt("device_stamp_ns", s.device_stamp_ns);
-  r.opt("trigger_index", s.trigger_index);
-  if (!r.status().ok()) return r.status();
+  HC_RETURN_IF_ERROR(r.get("counts", s.counts));
+  HC_RETURN_IF_ERROR(read_measurements(r, "force_n", s.force_n));
+  HC_RETURN_IF_ERROR(read_measurements(r, "torque_nm", s.torque_nm));
+  HC_RETURN_IF_ERROR(r.get("rdt_sequence", s.rdt_sequence));
+  HC_RETURN_IF_ERROR(r.get("ft_sequence", s.ft_sequence));
+  HC_RETURN_IF_ERROR(r.get("status", s.status));
+  HC_RETURN_IF_ERROR(r.get("sequence", s.sequence));
+  HC_RETURN_IF_ERROR(r.get("host_ns", s.host_ns));
+  HC_RETURN_IF_ERROR(r.optional("device_stamp_ns", s.device_stamp_ns));
+  HC_RETURN_IF_ERROR(r.optional("trigger_index", s.trigger_index));
   return s;
 }
 
 Result<ArmState> arm_state_from_json(std::string_view text) {
-  HC_ASSIGN_OR_RETURN(Json j, parse_object(text, "hardcopy.ArmState"));
-  Reader r(j, "hardcopy.ArmState");
+  constexpr std::string_view kType = "hardcopy.ArmState";
+  HC_ASSIGN_OR_RETURN(const Json j, parse_object(text, kType));
+  const JsonNode r(j, kType);
   ArmState s;
-  read_pose(r, "pose", s.pose);
-  read_pose(r, "target", s.target);
-  r.req("joints", s.joints);
-  r.req("speed_m_s", s.speed_m_s);
+  HC_RETURN_IF_ERROR(read_pose(r, "pose", s.pose));
+  HC_RETURN_IF_ERROR(read_pose(r, "target", s.target));
+  HC_RETURN_IF_ERROR(r.get("joints", s.joints));
+  HC_RETURN_IF_ERROR(r.get("speed_m_s", s.speed_m_s));
   std::string motion;
-  r.req("motion", motion);
-  if (r.status().ok()) {
-    bool found = false;
-    for (ArmMotion m : {ArmMotion::kIdle, ArmMotion::kHoming, ArmMotion::kMoving,
-                        ArmMotion::kHolding, ArmMotion::kStopped, ArmMotion::kFault})
-      if (to_string(m) == motion) {
-        s.motion = m;
-        found = true;
-      }
-    if (!found) r.fail("unknown motion '" + motion + "'");
-  }
-  r.req("homed", s.homed);
-  r.req("fault_code", s.fault_code);
-  r.req("fault", s.fault);
-  r.req("command_sequence", s.command_sequence);
-  r.req("sequence", s.sequence);
-  r.req("host_ns", s.host_ns);
-  r.opt("device_stamp_ns", s.device_stamp_ns);
-  if (!r.status().ok()) return r.status();
+  HC_RETURN_IF_ERROR(
+      r.get("motion", motion, {"idle", "homing", "moving", "holding", "stopped", "fault"}));
+  for (ArmMotion m : {ArmMotion::kIdle, ArmMotion::kHoming, ArmMotion::kMoving, ArmMotion::kHolding,
+                      ArmMotion::kStopped, ArmMotion::kFault})
+    if (to_string(m) == motion) s.motion = m;
+  HC_RETURN_IF_ERROR(r.get("homed", s.homed));
+  HC_RETURN_IF_ERROR(r.get("fault_code", s.fault_code));
+  HC_RETURN_IF_ERROR(r.get("fault", s.fault));
+  HC_RETURN_IF_ERROR(r.get("command_sequence", s.command_sequence));
+  HC_RETURN_IF_ERROR(r.get("sequence", s.sequence));
+  HC_RETURN_IF_ERROR(r.get("host_ns", s.host_ns));
+  HC_RETURN_IF_ERROR(r.optional("device_stamp_ns", s.device_stamp_ns));
   return s;
 }
 
 Result<ArmCommand> arm_command_from_json(std::string_view text) {
-  HC_ASSIGN_OR_RETURN(Json j, parse_object(text, "hardcopy.ArmCommand"));
-  Reader r(j, "hardcopy.ArmCommand");
+  constexpr std::string_view kType = "hardcopy.ArmCommand";
+  HC_ASSIGN_OR_RETURN(const Json j, parse_object(text, kType));
+  const JsonNode r(j, kType);
   ArmCommand c;
   std::string type;
-  r.req("type", type);
-  if (r.status().ok()) {
-    bool found = false;
-    for (ArmCommand::Type t :
-         {ArmCommand::Type::kHome, ArmCommand::Type::kMoveTo, ArmCommand::Type::kSetSpeed,
-          ArmCommand::Type::kStop, ArmCommand::Type::kClearFault})
-      if (to_string(t) == type) {
-        c.type = t;
-        found = true;
-      }
-    if (!found) r.fail("unknown command type '" + type + "'");
-  }
-  read_pose(r, "target", c.target);
-  r.req("speed_m_s", c.speed_m_s);
-  r.req("sequence", c.sequence);
-  if (!r.status().ok()) return r.status();
+  HC_RETURN_IF_ERROR(r.get("type", type, {"home", "move_to", "set_speed", "stop", "clear_fault"}));
+  for (ArmCommand::Type t :
+       {ArmCommand::Type::kHome, ArmCommand::Type::kMoveTo, ArmCommand::Type::kSetSpeed,
+        ArmCommand::Type::kStop, ArmCommand::Type::kClearFault})
+    if (to_string(t) == type) c.type = t;
+  HC_RETURN_IF_ERROR(read_pose(r, "target", c.target));
+  HC_RETURN_IF_ERROR(r.get("speed_m_s", c.speed_m_s));
+  HC_RETURN_IF_ERROR(r.get("sequence", c.sequence));
   return c;
 }
 

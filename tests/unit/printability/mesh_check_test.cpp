@@ -520,7 +520,7 @@ TEST(MeshRepair, RejectsBadInput) {
   bad.weld_tolerance = -1.0;
   EXPECT_EQ(repair_mesh(bad, &m, &s).code(), StatusCode::kInvalidArgument);
   bad.weld_tolerance = std::nan("");
-  EXPECT_FALSE(bad.validate().empty());
+  EXPECT_FALSE(bad.validate().ok());
   EXPECT_EQ(repair_mesh(MeshRepairOptions{}, nullptr, &s).code(), StatusCode::kInvalidArgument);
   m.triangles(0, 0) = 99;
   EXPECT_EQ(repair_mesh(MeshRepairOptions{}, &m, &s).code(), StatusCode::kInvalidArgument);

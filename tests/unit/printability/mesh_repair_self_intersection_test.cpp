@@ -289,7 +289,7 @@ TEST(MeshRepairSelfIntersection, RejectsABadDeviation) {
   for (double bad : {0.0, -1.0, std::nan(""), std::numeric_limits<double>::infinity()}) {
     MeshRepairOptions options = resolving();
     options.self_intersection_max_deviation = bad;
-    EXPECT_FALSE(options.validate().empty()) << bad;
+    EXPECT_FALSE(options.validate().ok()) << bad;
     EXPECT_EQ(repair_mesh(options, &m, &s).code(), StatusCode::kInvalidArgument) << bad;
   }
 }

@@ -26,8 +26,8 @@ struct MeshCheckOptions {
   bool parallel = true;
   ProgressReporter* progress = nullptr;
 
-  // Empty when valid; otherwise says what is wrong.
-  std::string validate() const;
+  // OK when valid; otherwise says what is wrong.
+  Status validate() const;
 };
 
 // What check_mesh found. Lengths, areas and volumes are in the mesh's own unit (cubed for volume).

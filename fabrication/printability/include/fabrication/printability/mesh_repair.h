@@ -41,7 +41,7 @@ struct MeshRepairOptions {
   double self_intersection_max_deviation = kDefaultSelfIntersectionMaxDeviation;
   ProgressReporter* progress = nullptr;
 
-  std::string validate() const;
+  Status validate() const;
 };
 
 // One CGAL step of the self-intersection stage (geometry/mesh_ops.h says what each does).
