@@ -11,20 +11,14 @@
 #include <string_view>
 
 #include "common/mesh.h"
+#include "sanitizer.h"  // HC_TEST_SANITIZED: ASan, whose leak checker comes with it
 
 #if HARDCOPY_HAVE_LIB3MF
 #include <filesystem>
 
 #include <Model/COM/NMR_DLLInterfaces.h>
 #endif
-#if defined(__SANITIZE_ADDRESS__)
-#define HC_TEST_HAS_LSAN 1
-#elif defined(__has_feature)
-#if __has_feature(address_sanitizer)
-#define HC_TEST_HAS_LSAN 1
-#endif
-#endif
-#if HC_TEST_HAS_LSAN
+#ifdef HC_TEST_SANITIZED
 #include <sanitizer/lsan_interface.h>
 #endif
 
@@ -70,7 +64,7 @@ inline Volume signed_volume(const TriangleMesh& m) {
 // lib3mf 1.8.1's package reader never closes the zip entries it opens
 // (NMR::COpcPackageReader::openZIPEntryIndexed); keep LeakSanitizer from blaming the test for it.
 inline int read_3mf_file(NMR::PLib3MFModelReader* reader, const std::filesystem::path& path) {
-#if HC_TEST_HAS_LSAN
+#ifdef HC_TEST_SANITIZED
   __lsan::ScopedDisabler third_party_leak;
 #endif
   return NMR::lib3mf_reader_readfromfileutf8(reader, path.c_str());

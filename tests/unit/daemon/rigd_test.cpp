@@ -51,17 +51,12 @@ std::string example(const std::string& name) {
 // than the default 50 ms stall limit, which (correctly) aborts the session. The stall trip itself
 // is tested on simulated time (Safety.*), so sanitized runs use the default rig spelled out
 // (rig_daemon/examples/rig_sim.yaml) with a 1 s limit; other builds run the embedded default.
-#if defined(__has_feature)
-#if __has_feature(address_sanitizer)
-#define HC_RIGD_TEST_SANITIZED 1
-#endif
-#endif
 
 // rigd as a child process, killed (SIGKILL) on destruction if still running.
 class Rigd {
  public:
   explicit Rigd(const std::filesystem::path& dir) : socket_(dir / "rigd.sock") {
-#ifdef HC_RIGD_TEST_SANITIZED
+#ifdef HC_TEST_SANITIZED
     const std::string config = (dir / "rig.yaml").string();
     {
       std::ifstream in(example("rig_sim.yaml"));
@@ -81,7 +76,7 @@ class Rigd {
       const std::string rigd = (bin_dir() / "rigd").string();
       const std::string sessions = (dir / "sessions").string();
       const std::string sock = socket_.string();
-#ifdef HC_RIGD_TEST_SANITIZED
+#ifdef HC_TEST_SANITIZED
       ::execl(rigd.c_str(), rigd.c_str(), "--config", config.c_str(), "--sessions-dir",
               sessions.c_str(), "--socket", sock.c_str(), static_cast<char*>(nullptr));
 #else
