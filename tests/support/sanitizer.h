@@ -43,3 +43,12 @@ inline bool long_tests() {
       GTEST_SKIP() << "run in the Release stage only (sanitizers make it " << (why) \
                    << "; see tests/support/sanitizer.h)";                            \
   } while (false)
+
+// Tests that take minutes even in Release (a whole generated suite, nine base-material fits): run
+// with HARDCOPY_LONG_TESTS=1 only; the default run covers the same code with smaller cases.
+#define HC_LONG_TEST_ONLY(why)                                                              \
+  do {                                                                                     \
+    if (!::hc::testing::long_tests())                                                      \
+      GTEST_SKIP() << "run with HARDCOPY_LONG_TESTS=1 only (" << (why)                     \
+                   << "; see tests/support/sanitizer.h)";                                  \
+  } while (false)

@@ -132,6 +132,13 @@ int finish(const Context& ctx, std::string_view cmd, const std::string& out, con
   j["printable"] = printable;
   j["output"] = out;
   j["intrusions"] = intrusions_json(intrusions);
+  if (cmd == "boolean") j["method"] = sum.exact_fallback ? "corefinement" : "medial_balls";
+  if (sum.exact_fallback) {
+    j["fallback_reason"] = sum.fallback_reason;
+    if (!json)
+      fmt::print(stderr, "{}: the medial-ball result was not a valid solid ({}); wrote the exact "
+                 "corefinement instead\n", cmd, sum.fallback_reason);
+  }
   if (json) {
     (void)print_json(j);
   } else {

@@ -8,6 +8,7 @@
 #include <unordered_map>
 
 #include "fabrication/abstraction/operations.h"
+#include "geometry/booleans.h"
 #include "geometry/mesh_distance.h"
 #include "operations_internal.h"
 
@@ -227,6 +228,23 @@ Result<TriangleMesh> boolean_3d(const TriangleMesh& a, const TriangleMesh& b, Bo
                                         o.medial, &sum.medial));
   sum.balls = balls.size();
   auto out = crust(balls, &sum);
+  if (!out.ok() && out.status().code() == StatusCode::kInternal) {
+    // The crust is not a valid solid: the exact boolean of the same inputs instead.
+    const auto cop = op == BooleanOp::kUnion        ? geometry::BooleanOperation::kUnion
+                     : op == BooleanOp::kDifference ? geometry::BooleanOperation::kDifference
+                                                    : geometry::BooleanOperation::kIntersection;
+    auto exact = geometry::corefine_boolean(a, b, cop);
+    if (!exact.ok()) {
+      return out.status().with_context(
+          fmt::format("boolean {} (and its exact fallback: {})", to_string(op),
+                      exact.status().message()));
+    }
+    if (exact->num_triangles() == 0)
+      return invalid_argument(fmt::format("boolean {}: the result is empty", to_string(op)));
+    sum.exact_fallback = true;
+    sum.fallback_reason = out.status().message();
+    out = std::move(exact);
+  }
   if (!out.ok()) return out.status().with_context(fmt::format("boolean {}", to_string(op)));
   sum.time_s = seconds_since(t0);
   if (summary) *summary = sum;

@@ -19,11 +19,13 @@ using testing::block;
 using testing::neo_hookean;
 
 // The nine reference materials behind testing::nine_base_materials()' moduli and ratios, with a
-// neo-Hookean stiffening beta = 2 s.
+// neo-Hookean stiffening beta = 2 s. The stiffest stiffens a little (s = 0.5, not 0): without it,
+// at 125 N on the coarse 6 x 6 x 3 block the sphere slides between the top nodes at synth example 5
+// and force control stops with "the probe does not reach the specimen".
 std::vector<hyperelastic::NeoHookeanMaterial> nine_references() {
   const double e[9] = {60e3, 100e3, 160e3, 250e3, 400e3, 650e3, 1000e3, 1600e3, 2500e3};
   const double nu[9] = {0.30, 0.25, 0.40, 0.30, 0.35, 0.20, 0.45, 0.30, 0.35};
-  const double s[9] = {2.0, 0.5, 1.5, 0.0, 1.0, 3.0, 0.5, 2.0, 0.0};
+  const double s[9] = {2.0, 0.5, 1.5, 0.0, 1.0, 3.0, 0.5, 2.0, 0.5};
   std::vector<hyperelastic::NeoHookeanMaterial> out;
   for (int i = 0; i < 9; ++i) out.push_back(neo_hookean(e[i], nu[i], 2 * s[i]));
   return out;
@@ -104,6 +106,7 @@ TEST(ReferenceComposite, StackingPredictsTwoLayerBlocks) {
 // averaged 0.067 mm RMS on targets simulated from its own base models.
 TEST(ReferenceComposite, DesignMatchesReferenceTargets) {
   HC_SKIP_WHEN_SANITIZED("nine base-material fits and exact design searches");
+  HC_LONG_TEST_ONLY("nine base-material fits, about 100 s in Release");
   const std::vector<hyperelastic::NeoHookeanMaterial> refs = nine_references();
   std::vector<BaseMaterial> library;
   for (const auto& r : refs) library.push_back(fit_reference(r));
@@ -111,8 +114,7 @@ TEST(ReferenceComposite, DesignMatchesReferenceTargets) {
   const material::Samples loads = testing::load_cases(mesh);
   Result<CellGrid> grid = CellGrid::equal_layers(mesh_box(mesh), 5);
   ASSERT_TRUE(grid.ok());
-  // All 20 with HARDCOPY_LONG_TESTS=1; CI's default run takes the first 4 (same seed).
-  const int count = ::hc::testing::long_tests() ? 20 : 4;
+  const int count = 20;
   const auto designs = testing::random_designs(count, 5, 9, 77);
   const material::Samples first = reference_target(loads, *grid, refs, designs[0]);
   Result<CompositeDesigner> designer = CompositeDesigner::create(first, *grid, library);

@@ -9,6 +9,8 @@
 // shared edges only change which samples are kept, never the validity of the crust.
 #pragma once
 
+#include <string>
+
 #include <cstdint>
 
 #include "common/mesh.h"
@@ -36,6 +38,10 @@ struct OperationSummary {
   SamplingSummary sampling;
   MedialSummary medial;
   CrustSummary crust;
+  // Booleans: the medial-ball crust was not a valid solid and the result is CGAL's exact
+  // corefinement of the same inputs instead (`fallback_reason` says what the crust had).
+  bool exact_fallback = false;
+  std::string fallback_reason;
   double time_s = 0.0;
 };
 
@@ -66,6 +72,9 @@ Result<TriangleMesh> offset_3d(const TriangleMesh& mesh, double distance,
                                const ShapeOptions& options, OperationSummary* summary = nullptr);
 
 // a op b (difference: a minus b). An empty result is kInvalidArgument ("the result is empty").
+// In 3-D, where the crust of the result's balls is not a valid solid (known to happen along the
+// crease of some unions), the result is the exact corefinement of a and b
+// (geometry::corefine_boolean) and summary->exact_fallback says so.
 Result<Polygon2> boolean_2d(const Polygon2& a, const Polygon2& b, BooleanOp op,
                             const ShapeOptions& options, OperationSummary* summary = nullptr);
 Result<TriangleMesh> boolean_3d(const TriangleMesh& a, const TriangleMesh& b, BooleanOp op,
