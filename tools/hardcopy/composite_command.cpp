@@ -40,6 +40,7 @@ struct FitBaseArgs {
   std::string model = "isotropic";
   int centres = 0;
   int passes = composite::BaseFitOptions{}.passes;
+  int max_examples = 0;
   std::string name;
   std::string printer_material;
   std::string tangential = "auto";
@@ -54,6 +55,16 @@ int run_fit_base(const GlobalOptions& global, const FitBaseArgs& args) {
   for (const std::string& path : args.samples) {
     Result<material::Samples> s = material::load_samples(path);
     if (!s.ok()) return ctx.fail(kName, s.status());
+    // A tracked press has one example per step (30-200): keep N spread evenly over them, the
+    // first and the last included (each example costs a full simulation per fit iteration).
+    auto& ex = s->examples;
+    const auto n = static_cast<std::size_t>(args.max_examples);
+    if (n > 0 && ex.size() > n) {
+      std::vector<material::Example> kept;
+      for (std::size_t k = 0; k < n; ++k)
+        kept.push_back(std::move(ex[n == 1 ? ex.size() - 1 : k * (ex.size() - 1) / (n - 1)]));
+      ex = std::move(kept);
+    }
     samples.push_back(std::move(s).value());
   }
   std::vector<const material::Samples*> ptrs;
@@ -282,6 +293,9 @@ void add_composite_commands(CLI::App& app, const GlobalOptions& global, int* exi
   b->add_option("--centres", fa->centres, "RBF centres P (0: 6 isotropic, 12 transverse)")
       ->check(kNonNegative);
   b->add_option("--passes", fa->passes, "Strain-coverage passes")->check(kPositive)->capture_default_str();
+  b->add_option("--max-examples", fa->max_examples,
+                "Per samples file, at most N examples, spread evenly over its steps (0: all)")
+      ->check(kNonNegative);
   b->add_option("--name", fa->name, "The base material's name")->required();
   b->add_option("--printer-material", fa->printer_material,
                 "The printer material (or mix) it is printed with");

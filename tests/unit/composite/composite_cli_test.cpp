@@ -39,9 +39,11 @@ TEST(CompositeCli, FitBaseDesignSimulate) {
     CliRun s = hardcopy("synth " + d + "/" + name + ".scene.json --examples 3 --seed 5 -o " + d +
                         "/" + name + ".samples.json");
     ASSERT_EQ(s.exit_code, 0) << s.out;
+    // The hard block's fit on 2 of its 3 examples (--max-examples keeps the first and the last).
+    const bool hard = std::string(name) == "hard";
     CliRun f = hardcopy("fit base --samples " + d + "/" + name + ".samples.json --model isotropic " +
-                        "--name " + name + " --printer-material 'TPU " + name + "' -o " + d + "/" +
-                        name + ".json --json");
+                        (hard ? "--max-examples 2 " : "") + "--name " + name +
+                        " --printer-material 'TPU " + name + "' -o " + d + "/" + name + ".json --json");
     ASSERT_EQ(f.exit_code, 0) << f.out;
     const auto j = nlohmann::json::parse(f.out);
     for (const char* key : {"rms_error_m", "max_error_m", "levels", "centres", "time_s"})
@@ -49,6 +51,9 @@ TEST(CompositeCli, FitBaseDesignSimulate) {
     for (const auto& l : j["levels"])
       for (const char* key : {"force_n", "avg_m", "std_m", "max_m"}) EXPECT_TRUE(l.contains(key));
     EXPECT_EQ(j["centres"], 6);
+    int examples = 0;
+    for (const auto& l : j["levels"]) examples += l["examples"].get<int>();
+    EXPECT_EQ(examples, hard ? 2 : 3) << name;
   }
   std::ofstream(dir / "lib.json") << R"({"materials": [
       {"name": "soft", "file": "soft.json", "printer_material": "TPU 85A"},
