@@ -5,6 +5,8 @@
 #include <CGAL/AABB_traits.h>
 #include <CGAL/AABB_tree.h>
 #include <CGAL/AABB_triangle_primitive.h>
+#include <CGAL/Cartesian_converter.h>
+#include <CGAL/Exact_predicates_exact_constructions_kernel.h>
 #include <CGAL/Exact_predicates_inexact_constructions_kernel.h>
 #include <CGAL/intersections.h>
 #include <fmt/format.h>
@@ -110,17 +112,24 @@ double closest_on_segments(const Eigen::Vector3d& p1, const Eigen::Vector3d& q1,
 Eigen::Vector3d corner(const Triangle& t, int k) { return to_eigen(t.vertex(k)); }
 
 // A point where two crossing triangles meet (the middle of their intersection), or the first
-// triangle's centroid when CGAL's construction returns nothing usable.
+// triangle's centroid when CGAL's construction returns nothing usable. Constructed with exact
+// arithmetic: with inexact constructions CGAL's coplanar triangle-triangle intersection can
+// dereference an empty list (it crashed under clang -O1 in MeshProximity's test).
 Eigen::Vector3d crossing_point(const Triangle& a, const Triangle& b) {
-  const auto x = CGAL::intersection(a, b);
+  using Exact = CGAL::Exact_predicates_exact_constructions_kernel;
+  const CGAL::Cartesian_converter<Kernel, Exact> to_exact;
+  const auto point = [](const Exact::Point_3& p) {
+    return Eigen::Vector3d(CGAL::to_double(p.x()), CGAL::to_double(p.y()), CGAL::to_double(p.z()));
+  };
+  const auto x = CGAL::intersection(to_exact(a), to_exact(b));
   if (x) {
-    if (const Point* p = boost::get<Point>(&*x)) return to_eigen(*p);
-    if (const auto* s = boost::get<Kernel::Segment_3>(&*x))
-      return 0.5 * (to_eigen(s->source()) + to_eigen(s->target()));
-    if (const Triangle* t = boost::get<Triangle>(&*x))
-      return (corner(*t, 0) + corner(*t, 1) + corner(*t, 2)) / 3.0;
-    if (const auto* v = boost::get<std::vector<Point>>(&*x); v && !v->empty())
-      return to_eigen(v->front());
+    if (const auto* p = boost::get<Exact::Point_3>(&*x)) return point(*p);
+    if (const auto* s = boost::get<Exact::Segment_3>(&*x))
+      return 0.5 * (point(s->source()) + point(s->target()));
+    if (const auto* t = boost::get<Exact::Triangle_3>(&*x))
+      return (point(t->vertex(0)) + point(t->vertex(1)) + point(t->vertex(2))) / 3.0;
+    if (const auto* v = boost::get<std::vector<Exact::Point_3>>(&*x); v && !v->empty())
+      return point(v->front());
   }
   return (corner(a, 0) + corner(a, 1) + corner(a, 2)) / 3.0;
 }

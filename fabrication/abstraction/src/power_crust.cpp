@@ -54,7 +54,10 @@ TriangleMesh merge_close_vertices(const std::vector<Eigen::Vector3d>& vertices,
   };
   struct Hash {
     std::size_t operator()(const std::array<std::int64_t, 3>& c) const {
-      return static_cast<std::size_t>(c[0] * 73856093LL ^ c[1] * 19349663LL ^ c[2] * 83492791LL);
+      // Unsigned: the products wrap (a signed overflow is undefined).
+      return static_cast<std::size_t>(static_cast<std::uint64_t>(c[0]) * 73856093ULL ^
+                                      static_cast<std::uint64_t>(c[1]) * 19349663ULL ^
+                                      static_cast<std::uint64_t>(c[2]) * 83492791ULL);
     }
   };
   std::unordered_map<std::array<std::int64_t, 3>, std::vector<int>, Hash> grid;
