@@ -35,6 +35,18 @@ Json levels_json(const std::vector<ForceLevelError>& levels) {
   return out;
 }
 
+// A tracked press has one example per step (30-200): keeps n (> 0) spread evenly over them, the
+// first and the last included (each example costs a full simulation per fit iteration or design).
+void keep_examples(int n_max, material::Samples* s) {
+  auto& ex = s->examples;
+  const auto n = static_cast<std::size_t>(n_max);
+  if (n == 0 || ex.size() <= n) return;
+  std::vector<material::Example> kept;
+  for (std::size_t k = 0; k < n; ++k)
+    kept.push_back(std::move(ex[n == 1 ? ex.size() - 1 : k * (ex.size() - 1) / (n - 1)]));
+  ex = std::move(kept);
+}
+
 struct FitBaseArgs {
   std::vector<std::string> samples;
   std::string model = "isotropic";
@@ -55,16 +67,7 @@ int run_fit_base(const GlobalOptions& global, const FitBaseArgs& args) {
   for (const std::string& path : args.samples) {
     Result<material::Samples> s = material::load_samples(path);
     if (!s.ok()) return ctx.fail(kName, s.status());
-    // A tracked press has one example per step (30-200): keep N spread evenly over them, the
-    // first and the last included (each example costs a full simulation per fit iteration).
-    auto& ex = s->examples;
-    const auto n = static_cast<std::size_t>(args.max_examples);
-    if (n > 0 && ex.size() > n) {
-      std::vector<material::Example> kept;
-      for (std::size_t k = 0; k < n; ++k)
-        kept.push_back(std::move(ex[n == 1 ? ex.size() - 1 : k * (ex.size() - 1) / (n - 1)]));
-      ex = std::move(kept);
-    }
+    keep_examples(args.max_examples, &*s);
     samples.push_back(std::move(s).value());
   }
   std::vector<const material::Samples*> ptrs;
@@ -123,6 +126,7 @@ struct DesignArgs {
   int sublayers = 0;
   std::string search = "bnb";
   int clusters = composite::SearchOptions{}.clusters;
+  int max_examples = 0;
   std::string output;
   std::string print_3mf;
   bool json = false;
@@ -172,6 +176,7 @@ int run_design(const GlobalOptions& global, const DesignArgs& args) {
   constexpr std::string_view kName = "design composite";
   Result<material::Samples> target = material::load_samples(args.target);
   if (!target.ok()) return ctx.fail(kName, target.status());
+  keep_examples(args.max_examples, &*target);
   Result<composite::Library> library = composite::read_library(args.library);
   if (!library.ok()) return ctx.fail(kName, library.status());
   Result<composite::CellGrid> grid = design_grid(args, target->mesh);
@@ -337,6 +342,9 @@ void add_composite_commands(CLI::App& app, const GlobalOptions& global, int* exi
   c->add_option("--clusters", da->clusters, "K of the K-means per tree level")
       ->check(kPositive)
       ->capture_default_str();
+  c->add_option("--max-examples", da->max_examples,
+                "At most N of the target's examples, spread evenly over its steps (0: all)")
+      ->check(kNonNegative);
   c->add_option("-o,--output", da->output, "Design JSON to write")->required();
   c->add_option("--3mf", da->print_3mf, "Multi-material 3MF to write (millimetres)");
   c->add_flag("--json", da->json, "Print one JSON object");
