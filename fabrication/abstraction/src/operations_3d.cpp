@@ -187,6 +187,12 @@ ExtraFeatures<3> intersection_features_3d(const TriangleMesh& a, const TriangleM
   return f;
 }
 
+geometry::BooleanOperation to_geometry(BooleanOp op) {
+  return op == BooleanOp::kUnion        ? geometry::BooleanOperation::kUnion
+         : op == BooleanOp::kDifference ? geometry::BooleanOperation::kDifference
+                                        : geometry::BooleanOperation::kIntersection;
+}
+
 Result<TriangleMesh> boolean_3d(const TriangleMesh& a, const TriangleMesh& b, BooleanOp op,
                                 const ShapeOptions& options, OperationSummary* summary) {
   const auto t0 = std::chrono::steady_clock::now();
@@ -230,10 +236,7 @@ Result<TriangleMesh> boolean_3d(const TriangleMesh& a, const TriangleMesh& b, Bo
   auto out = crust(balls, &sum);
   if (!out.ok() && out.status().code() == StatusCode::kInternal) {
     // The crust is not a valid solid: the exact boolean of the same inputs instead.
-    const auto cop = op == BooleanOp::kUnion        ? geometry::BooleanOperation::kUnion
-                     : op == BooleanOp::kDifference ? geometry::BooleanOperation::kDifference
-                                                    : geometry::BooleanOperation::kIntersection;
-    auto exact = geometry::corefine_boolean(a, b, cop);
+    auto exact = geometry::corefine_boolean(a, b, to_geometry(op));
     if (!exact.ok()) {
       return out.status().with_context(
           fmt::format("boolean {} (and its exact fallback: {})", to_string(op),

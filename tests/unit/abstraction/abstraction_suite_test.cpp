@@ -236,10 +236,7 @@ TEST(AbstractionSuite, BooleansAgreeWithCorefinementOnTheCorpus) {
       auto check = fabrication::check_mesh(*ours);
       ASSERT_TRUE(check.ok());
       EXPECT_TRUE(check->printable) << path << " " << to_string(op);
-      const auto cop = op == BooleanOp::kUnion        ? geometry::BooleanOperation::kUnion
-                       : op == BooleanOp::kDifference ? geometry::BooleanOperation::kDifference
-                                                      : geometry::BooleanOperation::kIntersection;
-      auto ref = geometry::corefine_boolean(*mesh, moved, cop);
+      auto ref = geometry::corefine_boolean(*mesh, moved, to_geometry(op));
       if (!ref.ok()) {
         std::printf("%s %s: corefinement failed (%s); ours %.6g printable\n",
                     path.filename().c_str(), to_string(op), ref.status().message().c_str(),

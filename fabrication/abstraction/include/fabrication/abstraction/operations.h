@@ -9,9 +9,8 @@
 // shared edges only change which samples are kept, never the validity of the crust.
 #pragma once
 
-#include <string>
-
 #include <cstdint>
+#include <string>
 
 #include "common/mesh.h"
 #include "common/status.h"
@@ -19,6 +18,7 @@
 #include "fabrication/abstraction/polygon.h"
 #include "fabrication/abstraction/power_crust.h"
 #include "fabrication/abstraction/sampling.h"
+#include "geometry/booleans.h"
 
 namespace hc::abstraction {
 
@@ -48,6 +48,8 @@ struct OperationSummary {
 enum class BooleanOp { kUnion, kDifference, kIntersection };
 const char* to_string(BooleanOp op);
 Result<BooleanOp> parse_boolean_op(std::string_view name);
+// The same operation for geometry::corefine_boolean (the exact boolean).
+geometry::BooleanOperation to_geometry(BooleanOp op);
 
 // Medial balls of a polygon / closed mesh (sampled, labelled by the even-odd / ray test).
 Result<Balls2> polygon_balls(const Polygon2& polygon, const ShapeOptions& options,
