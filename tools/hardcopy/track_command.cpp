@@ -28,6 +28,7 @@ struct TrackArgs {
   std::size_t max_steps = 0;
   std::optional<double> probe_radius_m;
   double match_distance_m = 1.0e-3;
+  double max_registration_rms_m = tracking::SessionTrackOptions{}.max_registration_rms_m;
   std::string markers = "blobs";
   std::vector<double> shaft_markers_m;
   bool probe_from_arm = false;
@@ -94,6 +95,7 @@ int run_track(const GlobalOptions& global, const TrackArgs& args) {
   tracking::SessionTrackOptions to;
   to.probe_radius_m = args.probe_radius_m;
   to.template_match_distance_m = args.match_distance_m;
+  to.max_registration_rms_m = args.max_registration_rms_m;
   to.probe_from_shaft_markers = !args.probe_from_arm;
   if (!args.shaft_markers_m.empty())
     to.probe.shaft_marker_distances_m = {args.shaft_markers_m[0], args.shaft_markers_m[1]};
@@ -177,6 +179,11 @@ void add_track_commands(CLI::App& app, const GlobalOptions& global, int* exit_co
       ->check(kPositive);
   t->add_option("--match-distance", args->match_distance_m,
                 "Largest marker-to-template-node distance after registration, m")
+      ->capture_default_str()
+      ->check(kPositive);
+  t->add_option("--max-registration-rms", args->max_registration_rms_m,
+                "Largest RMS distance of the first step's markers from their template nodes, m "
+                "(the offset enters every displacement)")
       ->capture_default_str()
       ->check(kPositive);
   t->add_option("--markers", args->markers,

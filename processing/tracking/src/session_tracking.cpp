@@ -40,6 +40,20 @@ std::string camera_topic(std::string_view camera) {
 }  // namespace rig
 
 using Clock = std::chrono::steady_clock;
+// The median over the points of the distance to the nearest other point (0 for fewer than two).
+double median_neighbour_distance(const std::vector<Eigen::Vector3d>& p) {
+  if (p.size() < 2) return 0;
+  std::vector<double> d(p.size(), std::numeric_limits<double>::infinity());
+  for (std::size_t i = 0; i < p.size(); ++i)
+    for (std::size_t j = i + 1; j < p.size(); ++j) {
+      const double dij = (p[i] - p[j]).norm();
+      d[i] = std::min(d[i], dij);
+      d[j] = std::min(d[j], dij);
+    }
+  std::nth_element(d.begin(), d.begin() + static_cast<std::ptrdiff_t>(d.size() / 2), d.end());
+  return d[d.size() / 2];
+}
+
 double seconds_since(Clock::time_point t0) {
   return std::chrono::duration<double>(Clock::now() - t0).count();
 }
@@ -676,6 +690,20 @@ Result<TrackedSession> track_detections(const SessionDetections& in,
                     "the world frame of the calibration?)",
                     reg.status().message()));
   sum.registration_rms_m = reg->rms_m;
+  if (reg->rms_m > options.max_registration_rms_m) {
+    std::vector<Eigen::Vector3d> matched_nodes;
+    for (const int n : reg->match)
+      if (n >= 0) matched_nodes.push_back(nodes[static_cast<std::size_t>(n)]);
+    return failed_precondition(fmt::format(
+        "the markers do not sit on the template's nodes: after registration they are {:.2f} mm "
+        "from their nodes (RMS; limit {:.2f} mm), and that offset would be in every displacement. "
+        "The markers are {:.2f} mm apart, the nodes they meet {:.2f} mm: make a template "
+        "whose surface nodes are markers (e.g. `hardcopy tetmesh --box` with a cell size that is a "
+        "whole multiple of the marker spacing), or raise the limit (--max-registration-rms) if the markers were "
+        "placed by hand",
+        1e3 * reg->rms_m, 1e3 * options.max_registration_rms_m,
+        1e3 * median_neighbour_distance(first_world), 1e3 * median_neighbour_distance(matched_nodes)));
+  }
   const Eigen::Isometry3d T_tpl_rig = reg->T * calibration.world_from_rig;
   // Markers farther than the match distance from their node (deformed in their first step, or
   // found in a later step) are assigned by their estimated rest position: their position minus

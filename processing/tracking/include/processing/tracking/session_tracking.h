@@ -175,6 +175,11 @@ struct SessionTrackOptions {
   // both seen, or no shaft geometry is known); false: always the arm's pose.
   bool probe_from_shaft_markers = true;
   double template_match_distance_m = 1.0e-3;
+  // The template's nodes must be where the markers are: a measured node's displacement is its
+  // marker's position minus the node's rest position, so a marker beside its node adds that offset
+  // to every displacement. Tracking stops with the cause when the first step's registration RMS
+  // exceeds this (a tenth of the thesis's 3 mm marker spacing).
+  double max_registration_rms_m = 0.3e-3;
   double fixed_tolerance_m = 1.0e-6;
   // Sphere radius of the probe's tip (m); unset: the session's (SessionDetections::probe_radius_m),
   // else 5 mm (the simulator's default).
