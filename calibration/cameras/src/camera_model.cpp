@@ -61,13 +61,14 @@ Eigen::Vector2d CameraModel::undistort_to_normalized(const Eigen::Vector2d& pixe
   Eigen::Vector2d x = xd;
   const Eigen::Vector2d target = pixel;
   for (int it = 0; it < 20; ++it) {
-    const Eigen::Vector2d f = distort_normalized(x) - target;
+    const Eigen::Vector2d at_x = distort_normalized(x);
+    const Eigen::Vector2d f = at_x - target;
     if (f.norm() < 1e-10) break;
     constexpr double h = 1e-7;
     Eigen::Matrix2d J;
-    J.col(0) = (distort_normalized(x + Eigen::Vector2d(h, 0.0)) - distort_normalized(x)) / h;
-    J.col(1) = (distort_normalized(x + Eigen::Vector2d(0.0, h)) - distort_normalized(x)) / h;
-    const Eigen::Vector2d step = J.colPivHouseholderQr().solve(f);
+    J.col(0) = (distort_normalized(x + Eigen::Vector2d(h, 0.0)) - at_x) / h;
+    J.col(1) = (distort_normalized(x + Eigen::Vector2d(0.0, h)) - at_x) / h;
+    const Eigen::Vector2d step = J.inverse() * f;  // closed-form 2x2; singular -> not finite
     if (!step.allFinite()) break;
     x -= step;
   }

@@ -2,8 +2,12 @@
 #include "processing/hyperelastic/neo_hookean.h"
 
 #include <fmt/format.h>
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
 
 #include <Eigen/Dense>
+#include <algorithm>
+#include <atomic>
 #include <cmath>
 #include <limits>
 
@@ -257,6 +261,26 @@ Result<NeoHookeanModel> NeoHookeanModel::create(const TetMesh& mesh,
     model.rest_volumes_[static_cast<std::size_t>(t)] = v;
     model.dm_inv_[static_cast<std::size_t>(t)] = Dm.inverse();
   }
+  // The Hessian's pattern and each element entry's slot in it (binary search in its column).
+  std::vector<Eigen::Triplet<double>> triplets;
+  triplets.reserve(static_cast<std::size_t>(nt) * 144);
+  for (Eigen::Index t = 0; t < nt; ++t)
+    for (int a = 0; a < 4; ++a)
+      for (int b = 0; b < 4; ++b)
+        for (int i = 0; i < 3; ++i)
+          for (int j = 0; j < 3; ++j)
+            triplets.emplace_back(3 * mesh.tets(t, a) + i, 3 * mesh.tets(t, b) + j, 0.0);
+  model.hessian_pattern_.resize(3 * n, 3 * n);
+  model.hessian_pattern_.setFromTriplets(triplets.begin(), triplets.end());
+  model.hessian_pattern_.makeCompressed();
+  const int* outer = model.hessian_pattern_.outerIndexPtr();
+  const int* inner = model.hessian_pattern_.innerIndexPtr();
+  model.hessian_slot_.resize(triplets.size());
+  for (std::size_t k = 0; k < triplets.size(); ++k) {
+    const int col = triplets[k].col();
+    const int* at = std::lower_bound(inner + outer[col], inner + outer[col + 1], triplets[k].row());
+    model.hessian_slot_[k] = static_cast<int>(at - inner);
+  }
   return model;
 }
 
@@ -290,55 +314,75 @@ double NeoHookeanModel::energy_gradient_hessian(const Eigen::VectorXd& x, Eigen:
                                                 Eigen::SparseMatrix<double>* hessian,
                                                 bool project_psd) const {
   const Eigen::Index nt = mesh_.num_tets();
-  if (gradient != nullptr) gradient->setZero(num_dofs());
-  std::vector<Eigen::Triplet<double>> triplets;
-  if (hessian != nullptr) triplets.reserve(static_cast<std::size_t>(nt) * 144);
-  double e = 0;
-  Eigen::Matrix3d P;
-  Eigen::Matrix<double, 9, 9> dPdF;
-  for (Eigen::Index t = 0; t < nt; ++t) {
-    const auto ts = static_cast<std::size_t>(t);
-    const Eigen::Matrix3d F = deformation_gradient(x, t);
-    const double psi =
-        neo_hookean_density(materials_[ts], F, &P, hessian != nullptr ? &dPdF : nullptr);
-    if (!std::isfinite(psi)) return kInf;
-    const double V = rest_volumes_[ts];
-    e += V * psi;
-    // B: 9×12, vec(F) = B·[x0; x1; x2; x3]; ∂F(r,c)/∂x_a(r) = g_a(c), g_{k+1} = Dm⁻¹ row k,
-    // g_0 = −Σ rows.
-    const Eigen::Matrix3d& Dinv = dm_inv_[ts];
-    Eigen::Matrix<double, 4, 3> g;
-    g.block<3, 3>(1, 0) = Dinv;
-    g.row(0) = -Dinv.colwise().sum();
-    Eigen::Matrix<double, 9, 12> B = Eigen::Matrix<double, 9, 12>::Zero();
-    for (int a = 0; a < 4; ++a)
-      for (int c = 0; c < 3; ++c)
-        for (int r = 0; r < 3; ++r) B(3 * c + r, 3 * a + r) = g(a, c);
-    if (gradient != nullptr) {
-      const Eigen::Matrix<double, 12, 1> ge =
-          V * B.transpose() * Eigen::Map<const Eigen::Matrix<double, 9, 1>>(P.data());
-      for (int a = 0; a < 4; ++a)
-        gradient->segment<3>(3 * mesh_.tets(t, a)) += ge.segment<3>(3 * a);
-    }
-    if (hessian != nullptr) {
-      Eigen::Matrix<double, 12, 12> He = V * B.transpose() * dPdF * B;
-      He = 0.5 * (He + He.transpose());
-      if (project_psd) {
-        Eigen::SelfAdjointEigenSolver<Eigen::Matrix<double, 12, 12>> es(He);
-        const Eigen::Matrix<double, 12, 1> ev = es.eigenvalues().cwiseMax(0.0);
-        He = es.eigenvectors() * ev.asDiagonal() * es.eigenvectors().transpose();
+  // Elements in parallel into per-element buffers, then gathered in element order (the sums are
+  // the same, bit for bit, whatever the thread count).
+  std::vector<double> energy(static_cast<std::size_t>(nt));
+  std::vector<Eigen::Matrix<double, 12, 1>> element_gradient(
+      gradient != nullptr ? static_cast<std::size_t>(nt) : 0);
+  std::vector<Eigen::Matrix<double, 12, 12>> element_hessian(
+      hessian != nullptr ? static_cast<std::size_t>(nt) : 0);
+  std::atomic<bool> inverted = false;
+  tbb::parallel_for(tbb::blocked_range<Eigen::Index>(0, nt, 256), [&](const auto& range) {
+    Eigen::Matrix3d P;
+    Eigen::Matrix<double, 9, 9> dPdF;
+    for (Eigen::Index t = range.begin(); t != range.end(); ++t) {
+      const auto ts = static_cast<std::size_t>(t);
+      const Eigen::Matrix3d F = deformation_gradient(x, t);
+      const double psi =
+          neo_hookean_density(materials_[ts], F, &P, hessian != nullptr ? &dPdF : nullptr);
+      if (!std::isfinite(psi)) {
+        inverted = true;
+        return;
       }
+      const double V = rest_volumes_[ts];
+      energy[ts] = V * psi;
+      // B: 9×12, vec(F) = B·[x0; x1; x2; x3]; ∂F(r,c)/∂x_a(r) = g_a(c), g_{k+1} = Dm⁻¹ row k,
+      // g_0 = −Σ rows.
+      const Eigen::Matrix3d& Dinv = dm_inv_[ts];
+      Eigen::Matrix<double, 4, 3> g;
+      g.block<3, 3>(1, 0) = Dinv;
+      g.row(0) = -Dinv.colwise().sum();
+      Eigen::Matrix<double, 9, 12> B = Eigen::Matrix<double, 9, 12>::Zero();
+      for (int a = 0; a < 4; ++a)
+        for (int c = 0; c < 3; ++c)
+          for (int r = 0; r < 3; ++r) B(3 * c + r, 3 * a + r) = g(a, c);
+      if (gradient != nullptr)
+        element_gradient[ts] =
+            V * B.transpose() * Eigen::Map<const Eigen::Matrix<double, 9, 1>>(P.data());
+      if (hessian != nullptr) {
+        Eigen::Matrix<double, 12, 12> He = V * B.transpose() * dPdF * B;
+        He = 0.5 * (He + He.transpose());
+        if (project_psd) {
+          Eigen::SelfAdjointEigenSolver<Eigen::Matrix<double, 12, 12>> es(He);
+          const Eigen::Matrix<double, 12, 1> ev = es.eigenvalues().cwiseMax(0.0);
+          He = es.eigenvectors() * ev.asDiagonal() * es.eigenvectors().transpose();
+        }
+        element_hessian[ts] = He;
+      }
+    }
+  });
+  if (inverted) return kInf;
+  double e = 0;
+  for (const double et : energy) e += et;
+  if (gradient != nullptr) {
+    gradient->setZero(num_dofs());
+    for (Eigen::Index t = 0; t < nt; ++t)
+      for (int a = 0; a < 4; ++a)
+        gradient->segment<3>(3 * mesh_.tets(t, a)) +=
+            element_gradient[static_cast<std::size_t>(t)].segment<3>(3 * a);
+  }
+  if (hessian != nullptr) {
+    *hessian = hessian_pattern_;
+    double* value = hessian->valuePtr();
+    std::fill(value, value + hessian->nonZeros(), 0.0);
+    const int* slot = hessian_slot_.data();
+    for (Eigen::Index t = 0; t < nt; ++t) {
+      const Eigen::Matrix<double, 12, 12>& He = element_hessian[static_cast<std::size_t>(t)];
       for (int a = 0; a < 4; ++a)
         for (int b = 0; b < 4; ++b)
           for (int i = 0; i < 3; ++i)
-            for (int j = 0; j < 3; ++j)
-              triplets.emplace_back(3 * mesh_.tets(t, a) + i, 3 * mesh_.tets(t, b) + j,
-                                    He(3 * a + i, 3 * b + j));
+            for (int j = 0; j < 3; ++j) value[*slot++] += He(3 * a + i, 3 * b + j);
     }
-  }
-  if (hessian != nullptr) {
-    hessian->resize(num_dofs(), num_dofs());
-    hessian->setFromTriplets(triplets.begin(), triplets.end());
   }
   return e;
 }

@@ -142,6 +142,10 @@ class NeoHookeanModel {
   std::vector<NeoHookeanMaterial> materials_;
   std::vector<double> rest_volumes_;
   std::vector<Eigen::Matrix3d> dm_inv_;
+  // The Hessian's sparsity (every element's full 12x12 block), built once, and per tet where each
+  // of its 144 entries (a, b, i, j order: row 3a+i, column 3b+j) lands in the value array.
+  Eigen::SparseMatrix<double> hessian_pattern_;
+  std::vector<int> hessian_slot_;
 };
 
 // ---- Static equilibrium ----
