@@ -1,5 +1,6 @@
 #include "processing/fem/corotational.h"
 
+#include <Eigen/Cholesky>
 #include <Eigen/Geometry>
 #include <algorithm>
 #include <cmath>
@@ -37,14 +38,29 @@ Eigen::Matrix3d polar_rotation(const Eigen::Matrix3d& a, Eigen::Quaterniond* q,
   // deformations": maximises tr(R^T A) by rotating q about the torque axis; always returns a
   // rotation (also for flat and inverted elements, where SVD-based polar decompositions need sign
   // fixes).
+  //
+  // Their step, torque / tr(R^T A), takes the objective's Hessian (in the rotation vector) as
+  // tr(B) I with B = A R^T; the exact Hessian is tr(B) I - sym(B). With it the step is Newton's:
+  // for the small strains of a fit, 2-3 iterations to 1e-13 from a warm start instead of 22-31
+  // (measured on random strains of 1-20 %; their step shrinks the error only ~3x per
+  // iteration). Newton's step is taken only where that Hessian is positive definite and the step
+  // at most 4x theirs (near-flat or inverted elements keep their robust step).
   constexpr double kAngleTolerance = 1e-13;
   for (int it = 0; it < max_iterations; ++it) {
     const Eigen::Matrix3d r = q->toRotationMatrix();
     const Eigen::Vector3d omega_num =
         r.col(0).cross(a.col(0)) + r.col(1).cross(a.col(1)) + r.col(2).cross(a.col(2));
-    const double denom =
-        std::abs(r.col(0).dot(a.col(0)) + r.col(1).dot(a.col(1)) + r.col(2).dot(a.col(2))) + 1e-9;
-    const Eigen::Vector3d omega = omega_num / denom;
+    const double trace = r.col(0).dot(a.col(0)) + r.col(1).dot(a.col(1)) + r.col(2).dot(a.col(2));
+    Eigen::Vector3d omega = omega_num / (std::abs(trace) + 1e-9);
+    if (trace > 0) {
+      const Eigen::Matrix3d b = a * r.transpose();
+      const Eigen::LLT<Eigen::Matrix3d> hessian(trace * Eigen::Matrix3d::Identity() -
+                                                0.5 * (b + b.transpose()));
+      if (hessian.info() == Eigen::Success) {
+        const Eigen::Vector3d newton = hessian.solve(omega_num);
+        if (newton.allFinite() && newton.norm() <= 4 * omega.norm()) omega = newton;
+      }
+    }
     const double w = omega.norm();
     if (!(w >= kAngleTolerance)) break;  // also stops on NaN
     *q = Eigen::Quaterniond(Eigen::AngleAxisd(w, omega / w)) * *q;
