@@ -4,9 +4,13 @@
 // hardcopy_camera_calibration.
 #pragma once
 
+#include <unistd.h>
+
 #include <filesystem>
+#include <functional>
 #include <memory>
 #include <string>
+#include <system_error>
 #include <vector>
 
 #include "calibration/cameras/camera_model.h"
@@ -48,6 +52,38 @@ inline Result<std::filesystem::path> record_simulated_session(
   HC_ASSIGN_OR_RETURN(rig::RigConfig cfg, rig::parse_rig_config(rig_yaml, "rig.yaml"));
   HC_ASSIGN_OR_RETURN(rig::Plan plan, rig::parse_plan(plan_yaml, "plan.yaml"));
   return record_simulated_session(std::move(cfg), plan, sessions_dir, timeout_ms);
+}
+
+// The same, recorded once per test binary build and reused by the binary's later processes:
+// ctest runs every test of a suite in its own process, so a suite whose SetUpTestSuite records a
+// session recorded it once per test. The copy lives in the build's test-artifacts/session-cache,
+// keyed by the two texts and the test executable's size and modification time (a rebuilt binary,
+// whose recorder may differ, records afresh). Only for tests that read the session.
+inline Result<std::filesystem::path> record_simulated_session_cached(
+    const std::string& rig_yaml, const std::string& plan_yaml,
+    const std::filesystem::path& sessions_dir) {
+  namespace fs = std::filesystem;
+  std::error_code ec;
+  const fs::path exe = fs::read_symlink("/proc/self/exe", ec);
+  std::string identity = rig_yaml + "\n---\n" + plan_yaml;
+  if (!ec) {
+    identity += "\n" + exe.string() + " " + std::to_string(fs::file_size(exe, ec)) + " " +
+                std::to_string(fs::last_write_time(exe, ec).time_since_epoch().count());
+  }
+  const fs::path cache = fs::path(HARDCOPY_BIN_DIR) / ".." / "test-artifacts" / "session-cache";
+  const fs::path cached =
+      cache / (std::to_string(std::hash<std::string>{}(identity)) + ".mcap");
+  if (!ec && fs::is_regular_file(cached, ec)) return cached;
+  HC_ASSIGN_OR_RETURN(fs::path recorded,
+                      record_simulated_session(rig_yaml, plan_yaml, sessions_dir));
+  // Copied under a temporary name and renamed: a concurrent process sees all of it or nothing.
+  fs::create_directories(cache, ec);
+  const fs::path tmp = cache / (cached.filename().string() + ".tmp-" + std::to_string(::getpid()));
+  if (fs::copy_file(recorded, tmp, fs::copy_options::overwrite_existing, ec)) {
+    fs::rename(tmp, cached, ec);
+    if (ec) fs::remove(tmp, ec);
+  }
+  return recorded;
 }
 
 // The simulated cameras' true calibration from a session's "sim_cameras" metadata, in the frame

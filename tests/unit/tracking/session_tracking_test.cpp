@@ -86,8 +86,8 @@ class SimulatedPress : public ::testing::Test {
     if (::hc::testing::kSanitized) return;  // every test of the suite skips (HC_SKIP_WHEN_SANITIZED)
     dir_ = new ScratchDir();
     rig_yaml_ = new std::string(testing::hires_rig_yaml());
-    Result<std::filesystem::path> session =
-        testing::record_session(dir_->path(), *rig_yaml_, testing::press_plan_yaml(30, 15.0));
+    Result<std::filesystem::path> session = ::hc::testing::record_simulated_session_cached(
+        *rig_yaml_, testing::press_plan_yaml(30, 15.0), dir_->path());
     EXPECT_TRUE(session.ok()) << session.status().to_string();
     session_ = new std::filesystem::path(session.ok() ? *session : std::filesystem::path());
     Result<calib::RigCalibration> cal = testing::true_calibration(*rig_yaml_);
