@@ -699,10 +699,11 @@ Result<TrackedSession> track_detections(const SessionDetections& in,
         "from their nodes (RMS; limit {:.2f} mm), and that offset would be in every displacement. "
         "The markers are {:.2f} mm apart, the nodes they meet {:.2f} mm: make a template "
         "whose surface nodes are markers (e.g. `hardcopy tetmesh --box` with a cell size that is a "
-        "whole multiple of the marker spacing), or raise the limit (--max-registration-rms) if the markers were "
-        "placed by hand",
+        "whole multiple of the marker spacing), or raise the limit (--max-registration-rms) if "
+        "the markers were placed by hand",
         1e3 * reg->rms_m, 1e3 * options.max_registration_rms_m,
-        1e3 * median_neighbour_distance(first_world), 1e3 * median_neighbour_distance(matched_nodes)));
+        1e3 * median_neighbour_distance(first_world),
+        1e3 * median_neighbour_distance(matched_nodes)));
   }
   const Eigen::Isometry3d T_tpl_rig = reg->T * calibration.world_from_rig;
   // Markers farther than the match distance from their node (deformed in their first step, or
