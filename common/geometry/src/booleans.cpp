@@ -48,6 +48,19 @@ Result<ExactMesh> exact_operand(const TriangleMesh& mesh, const std::string& wha
   return sm;
 }
 
+// Self-intersecting triangle pairs of a result once its exact coordinates are rounded to doubles.
+Result<std::int64_t> pairs_after_rounding(const TriangleMesh& result) {
+  if (result.num_triangles() == 0) return std::int64_t{0};
+  SelfIntersectionQuery query;
+  query.triangles.resize(static_cast<std::size_t>(result.num_triangles()));
+  for (std::size_t t = 0; t < query.triangles.size(); ++t)
+    query.triangles[t] = static_cast<std::int32_t>(t);
+  query.is_polygon_mesh = true;
+  HC_ASSIGN_OR_RETURN(const SelfIntersectionCount count,
+                      count_self_intersecting_pairs(result, query));
+  return count.pairs;
+}
+
 }  // namespace
 
 const char* to_string(BooleanOperation op) {
@@ -93,18 +106,8 @@ Result<TriangleMesh> corefine_boolean(const TriangleMesh& a, const TriangleMesh&
     TriangleMesh result = internal::to_triangle_mesh(out);
     if (summary != nullptr) {
       summary->closed = CGAL::is_closed(out);
-      summary->self_intersecting_pairs_after_rounding = 0;
-      if (result.num_triangles() > 0) {
-        SelfIntersectionQuery query;
-        query.triangles.resize(static_cast<std::size_t>(result.num_triangles()));
-        for (std::size_t t = 0; t < query.triangles.size(); ++t) {
-          query.triangles[t] = static_cast<std::int32_t>(t);
-        }
-        query.is_polygon_mesh = true;
-        HC_ASSIGN_OR_RETURN(const SelfIntersectionCount count,
-                            count_self_intersecting_pairs(result, query));
-        summary->self_intersecting_pairs_after_rounding = count.pairs;
-      }
+      HC_ASSIGN_OR_RETURN(summary->self_intersecting_pairs_after_rounding,
+                          pairs_after_rounding(result));
       summary->time_s =
           std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     }
@@ -141,15 +144,9 @@ Result<TriangleMesh> csg_sequence(const TriangleMesh& base, const std::vector<Cs
       summary->steps = static_cast<int>(steps.size());
       summary->closed = CGAL::is_closed(acc);
       summary->self_intersecting_pairs_after_rounding = 0;
-      if (options.count_self_intersections && result.num_triangles() > 0) {
-        SelfIntersectionQuery query;
-        query.triangles.resize(static_cast<std::size_t>(result.num_triangles()));
-        for (std::size_t t = 0; t < query.triangles.size(); ++t)
-          query.triangles[t] = static_cast<std::int32_t>(t);
-        query.is_polygon_mesh = true;
-        HC_ASSIGN_OR_RETURN(const SelfIntersectionCount count,
-                            count_self_intersecting_pairs(result, query));
-        summary->self_intersecting_pairs_after_rounding = count.pairs;
+      if (options.count_self_intersections) {
+        HC_ASSIGN_OR_RETURN(summary->self_intersecting_pairs_after_rounding,
+                            pairs_after_rounding(result));
       }
       summary->time_s =
           std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
