@@ -48,6 +48,16 @@ Result<ExactMesh> exact_operand(const TriangleMesh& mesh, const std::string& wha
   return sm;
 }
 
+// CGAL's corefinement for `op` (`out` may be `a`); false when the result cannot be made manifold.
+bool corefine(BooleanOperation op, ExactMesh& a, ExactMesh& b, ExactMesh& out) {
+  switch (op) {
+    case BooleanOperation::kUnion: return PMP::corefine_and_compute_union(a, b, out);
+    case BooleanOperation::kDifference: return PMP::corefine_and_compute_difference(a, b, out);
+    case BooleanOperation::kIntersection: return PMP::corefine_and_compute_intersection(a, b, out);
+  }
+  return false;
+}
+
 // Self-intersecting triangle pairs of a result once its exact coordinates are rounded to doubles.
 Result<std::int64_t> pairs_after_rounding(const TriangleMesh& result) {
   if (result.num_triangles() == 0) return std::int64_t{0};
@@ -87,17 +97,7 @@ Result<TriangleMesh> corefine_boolean(const TriangleMesh& a, const TriangleMesh&
     HC_ASSIGN_OR_RETURN(ExactMesh ma, checked_input(a, "first"));
     HC_ASSIGN_OR_RETURN(ExactMesh mb, checked_input(b, "second"));
     ExactMesh out;
-    bool ok = false;
-    switch (op) {
-      case BooleanOperation::kUnion: ok = PMP::corefine_and_compute_union(ma, mb, out); break;
-      case BooleanOperation::kDifference:
-        ok = PMP::corefine_and_compute_difference(ma, mb, out);
-        break;
-      case BooleanOperation::kIntersection:
-        ok = PMP::corefine_and_compute_intersection(ma, mb, out);
-        break;
-    }
-    if (!ok) {
+    if (!corefine(op, ma, mb, out)) {
       return internal_error(fmt::format(
           "boolean {}: CGAL could not build the result as a manifold mesh (the inputs touch "
           "along a non-manifold curve)",
@@ -125,17 +125,7 @@ Result<TriangleMesh> csg_sequence(const TriangleMesh& base, const std::vector<Cs
       const std::string what = fmt::format("csg: {} '{}'", to_string(step.op), step.name);
       HC_ASSIGN_OR_RETURN(ExactMesh operand,
                           exact_operand(step.operand, what, options.check_operands));
-      bool ok = false;
-      switch (step.op) {
-        case BooleanOperation::kUnion: ok = PMP::corefine_and_compute_union(acc, operand, acc); break;
-        case BooleanOperation::kDifference:
-          ok = PMP::corefine_and_compute_difference(acc, operand, acc);
-          break;
-        case BooleanOperation::kIntersection:
-          ok = PMP::corefine_and_compute_intersection(acc, operand, acc);
-          break;
-      }
-      if (!ok)
+      if (!corefine(step.op, acc, operand, acc))
         return internal_error(what + ": CGAL could not make the result a manifold mesh");
       task.advance();
     }
