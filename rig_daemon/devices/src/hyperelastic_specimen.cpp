@@ -3,7 +3,9 @@
 #include <algorithm>
 #include <cmath>
 
+#include "processing/fem/probe.h"
 #include "processing/hyperelastic/neo_hookean.h"
+#include "processing/hyperelastic/reference_indentation.h"
 #include "processing/meshing/tetrahedralize.h"
 
 namespace hc::devices::sim {
@@ -21,10 +23,10 @@ Status HyperelasticSpecimenOptions::validate() const {
   if (std::abs(nx - std::round(nx)) > 1e-6 || std::abs(ny - std::round(ny)) > 1e-6)
     return invalid_argument("hyperelastic specimen: size_m must be a multiple of marker_spacing_m");
   if (layers < 1 || depth_steps < 1 || !(max_depth_m > 0) || !(probe_radius_m > 0) ||
-      !(location_grid_m > 0) || !(contact_stiffness_n_per_m > 0))
+      !(location_grid_m > 0))
     return invalid_argument(
-        "hyperelastic specimen: layers, depth_steps, max_depth_m, "
-        "probe_radius_m, location_grid_m, contact stiffness must be > 0");
+        "hyperelastic specimen: layers, depth_steps, max_depth_m, probe_radius_m, "
+        "location_grid_m must be > 0");
   return {};
 }
 
@@ -38,7 +40,7 @@ struct HyperelasticSpecimen::Curve {
 class HyperelasticSpecimen::Impl {
  public:
   hy::NeoHookeanModel model;
-  hy::Boundary boundary;
+  std::vector<int> fixed_nodes;
   std::vector<int> top_nodes;  // in marker order
   Eigen::Vector3d offset;      // mesh → world translation
   mutable std::mutex mutex;
@@ -68,8 +70,7 @@ Result<std::shared_ptr<HyperelasticSpecimen>> HyperelasticSpecimen::create(
   impl.offset = Eigen::Vector3d(options.center_m.x() - 0.5 * options.size_m.x(),
                                 options.center_m.y() - 0.5 * options.size_m.y(),
                                 options.top_z_m - options.height_m);
-  impl.boundary.fixed_nodes =
-      hc::meshing::nodes_with_marker(impl.model.mesh(), hc::meshing::kMarkerBottom);
+  impl.fixed_nodes = hc::meshing::nodes_with_marker(impl.model.mesh(), hc::meshing::kMarkerBottom);
   std::vector<int> top = hc::meshing::nodes_with_marker(impl.model.mesh(), hc::meshing::kMarkerTop);
   // Marker order: by y then x, like marker_grid().
   const auto& nodes = impl.model.mesh().nodes;
@@ -94,38 +95,34 @@ const HyperelasticSpecimen::Curve* HyperelasticSpecimen::curve_at(double x_m, do
   if (it != impl_->curves.end()) return it->second.get();
   // Solve this location: the sphere starts touching the top surface at the grid point.
   auto curve = std::make_unique<Curve>();
-  hy::ProbeOptions po;
-  po.radius_m = options_.probe_radius_m;
-  po.stiffness_n_per_m = options_.contact_stiffness_n_per_m;
-  po.start_position_m =
+  const Eigen::Vector3d start =
       Eigen::Vector3d(ix * options_.location_grid_m, iy * options_.location_grid_m,
                       options_.top_z_m + options_.probe_radius_m) -
       impl_->offset;
-  std::unique_ptr<hy::RigidProbe> probe = hy::make_sphere_probe(po);
-  hy::Boundary boundary = impl_->boundary;
-  boundary.contacts = {probe.get()};
-  Eigen::VectorXd x = impl_->model.rest_positions();
-  auto record = [&](double depth, double force) {
+  hc::hyperelastic::ReferenceIndentationOptions io;
+  io.steps = options_.depth_steps;
+  io.record_steps = true;
+  Result<std::unique_ptr<hc::fem::Probe>> probe =
+      hc::fem::make_sphere_probe(options_.probe_radius_m, start, -Eigen::Vector3d::UnitZ());
+  Result<hc::hyperelastic::IndentationResult> ind =
+      probe.ok() ? hc::hyperelastic::reference_indentation(
+                       impl_->model, impl_->fixed_nodes, **probe,
+                       {hc::fem::LoadControl::kDepth, options_.max_depth_m}, io)
+                 : Result<hc::hyperelastic::IndentationResult>(probe.status());
+  const auto record = [&](double depth, double force, const MatrixX3d& x) {
     curve->depth_m.push_back(depth);
     curve->force_n.push_back(force);
     std::vector<Eigen::Vector3d> m;
     m.reserve(impl_->top_nodes.size());
-    for (int n : impl_->top_nodes) m.push_back(x.segment<3>(3 * n) + impl_->offset);
+    for (int n : impl_->top_nodes) m.push_back(x.row(n).transpose() + impl_->offset);
     curve->markers.push_back(std::move(m));
   };
-  record(0.0, 0.0);
-  for (int k = 1; k <= options_.depth_steps; ++k) {
-    hy::IndentOptions io;
-    io.steps = 1;
-    io.depth_m = options_.max_depth_m * k / options_.depth_steps;
-    hy::IndentSummary summary;
-    Status st = hy::indent(impl_->model, boundary, *probe, io, &x, &summary);
-    if (!st.ok() || !summary.usable) {
-      curve->converged = false;
-      break;
-    }
-    record(io.depth_m, summary.force_n);
-  }
+  record(0.0, 0.0, impl_->model.mesh().nodes);
+  curve->converged = ind.ok() && ind->summary.usable;
+  if (ind.ok())
+    for (std::size_t k = 0; k < ind->step_positions_m.size(); ++k)
+      record(ind->summary.steps[k].depth_m, ind->summary.steps[k].force_n,
+             ind->step_positions_m[k]);
   const Curve* out = curve.get();
   impl_->curves.emplace(std::make_pair(ix, iy), std::move(curve));
   return out;

@@ -16,6 +16,7 @@
 #include "common/mesh.h"
 #include "common/status.h"
 #include "common/tet_mesh.h"
+#include "processing/meshing/size_field.h"
 
 namespace hc::meshing {
 
@@ -39,6 +40,12 @@ struct TetrahedralizeOptions {
   std::vector<RegionSeed> regions;
   // TetGen's hole list: points inside cavities that are to stay empty.
   std::vector<Eigen::Vector3d> holes;
+  // Mesh sizing function (TetGen 'm' with a background mesh, size_field.h): the desired edge length
+  // near a point (input units), e.g. fine where a probe will touch and coarse far from it. TetGen
+  // splits the boundary and the volume until edges are about this long (measured on boxes with a
+  // uniform size: mean edge 1.3 x the size, boundary edges 1.2 x). Empty: no sizing function.
+  // Must return finite values > 0 over the input's bounding box.
+  EdgeSizeFunction edge_size;
 
   // Fails with kInvalidArgument explaining the bad value.
   Status validate() const;

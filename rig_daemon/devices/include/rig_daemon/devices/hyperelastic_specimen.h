@@ -2,9 +2,10 @@
 // (processing/hyperelastic, the reference model, which differs from the fitter's co-rotational
 // data-driven model), fixed at its bottom and indented from above by the rigid spherical probe.
 //
-// Each probe location is solved once, lazily, in depth steps up to max_depth_m (Newton equilibrium
-// per step, warm-started); force and marker positions are interpolated linearly in depth between
-// the steps. Locations snap to a grid of `location_grid_m` (the probe centre is within half a grid
+// Each probe location is solved once, lazily, in depth steps up to max_depth_m by processing's
+// reference indentation (hyperelastic/reference_indentation.h, the contact rule of the FEM and of
+// `hardcopy synth`); force and marker positions are interpolated linearly in depth between the
+// steps. Locations snap to a grid of `location_grid_m` (the probe centre is within half a grid
 // cell of where it is); the first query at a new location blocks while it is solved (about a
 // second on a coarse mesh), so plans should revisit a few locations. Markers are the top-surface
 // nodes of a structured mesh whose top grid spacing is the marker spacing (3 mm, thesis 5.6).
@@ -36,7 +37,6 @@ struct HyperelasticSpecimenOptions {
   double max_depth_m = 0.006;
   int depth_steps = 12;
   double location_grid_m = 0.003;
-  double contact_stiffness_n_per_m = 1e5;
   Status validate() const;
 };
 
