@@ -3,6 +3,7 @@
 // timed next to CHOLMOD's own numeric factorise + solve of the same matrix with the same symbolic
 // analysis (the lower bound for any step that refactorises). Counters: step_ms, cholmod_ms, ratio =
 // step / cholmod. Targets (issue 3): 1,691 tets >= 100 Hz, 10k <= 30 ms, 100k <= 1 s, ratio <= 1.5.
+// And the default-settings Hertz scene of `hardcopy simulate` (issue 13).
 #include <benchmark/benchmark.h>
 #include <suitesparse/cholmod.h>
 
@@ -13,6 +14,7 @@
 #include "processing/fem/incremental.h"
 #include "processing/fem/material_model.h"
 #include "processing/fem/verification.h"
+#include "processing/scene/scene.h"
 
 namespace {
 
@@ -123,6 +125,39 @@ void BM_FemIncrementalStep(benchmark::State& state) {
 }
 BENCHMARK(BM_FemIncrementalStep)->Arg(1691)->Arg(10000)->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_FemIncrementalStep)->Arg(100000)->Iterations(3)->Unit(benchmark::kMillisecond);
+
+// `hardcopy simulate` of the issue's Hertz scene on default settings (no mesh keys: the specimen
+// is meshed for the contact, contact_meshing.h): E 0.5 MPa, ν 0.4, a 10 mm sphere 0.5 mm deep in a
+// 100 x 100 x 50 mm block, 10 load steps. Counters: force and its error against Sneddon's exact
+// sphere (0.8829 N; Hertz 0.887 N), tets, mesh and total time. Target (issue 13): within 5 % in
+// <= 2 s.
+void BM_DefaultHertzScene(benchmark::State& state) {
+  constexpr const char* kScene = R"({
+    "specimen": {"box_m": [0.1, 0.1, 0.05]},
+    "material": {"linear": {"youngs_pa": 5e5, "poisson": 0.4}},
+    "fixed": "bottom",
+    "probe": {"shape": "sphere", "radius_m": 0.01, "position_m": [0.05, 0.05, 0.0605]},
+    "load": {"depth_m": 5e-4}})";
+  constexpr double kSneddon = 0.88289;  // ANALYTIC_BENCHMARKS.md §2 for these values
+  auto scene = hc::scene::parse_scene(kScene, "hertz.json", "/tmp");
+  if (!scene.ok()) {
+    state.SkipWithError(scene.status().to_string().c_str());
+    return;
+  }
+  for (auto _ : state) {
+    auto r = hc::scene::simulate(*scene);
+    if (!r.ok()) {
+      state.SkipWithError(r.status().to_string().c_str());
+      return;
+    }
+    state.counters["force_n"] = r->force_n;
+    state.counters["error_pct"] = 100 * (r->force_n / kSneddon - 1);
+    state.counters["tets"] = static_cast<double>(r->mesh.num_tets());
+    state.counters["mesh_s"] = r->mesh_report.time_s;
+    state.counters["total_s"] = r->time_s;
+  }
+}
+BENCHMARK(BM_DefaultHertzScene)->Iterations(1)->Unit(benchmark::kSecond);
 
 }  // namespace
 

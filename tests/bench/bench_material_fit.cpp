@@ -1,81 +1,171 @@
-// Heterogeneous material fit at the thesis's scale (Sec. 4.5: foam block, 1,805 tets, 48 examples;
-// issue 3 target <= 5 minutes on this machine): a 50 x 50 x 25 mm block of 10 x 10 x 3 cubes
-// (1,800 tets), 48 synthetic examples from a strain-stiffening reference, then fit_heterogeneous
-// with the own LM, and (once, for comparison) one example fitted with the own LM and with Ceres.
+// Heterogeneous material fit at and beyond the thesis's scale (Sec. 4.5: foam block, 1,805 tets, 48
+// examples), 50 x 50 x 25 mm blocks, synthetic examples from a strain-stiffening reference:
 //
-// Run: build/bin/bench_material_fit [--benchmark_filter=...]. Counters: time per stage, errors
-// relative to the largest displacement, mean basis size.
+// * BM_FitScaling/<tets>/<joint>: fit_heterogeneous on 48 examples at 1,800 / 3,000 / 10,000 tets,
+//   per-example pipeline (joint 0, clean examples) and with the joint material fit (joint 1, 10 %
+//   noise, the noise study's settings). Issue 13: time per example no worse than ~linear in the
+//   tets; 10,000 tets x 48 examples <= 10 minutes and <= 4 GB peak memory (run it alone under
+//   /usr/bin/time -v: --benchmark_filter='BM_FitScaling/9996').
+// * BM_JointNoiseStudy1536/<solver>: the joint phase on the three-layer noise-study block of
+//   8 x 8 x 4 cells (1,536 tets), 24 examples from the neo-Hookean reference, 20 % noise; solver 0
+//   automatic (matrix-free here), 1 dense (the path that took 944 s in issue 13). Counters:
+//   joint_s and the error on the clean examples.
+// * BM_OneExampleSolvers/<tets>/<solver>: one example's per-element fit, dense (1) vs matrix-free
+//   (2) vs Ceres (3), the crossover behind FitSolver::kAuto.
+//
+// Run: build/bin/bench_material_fit [--benchmark_filter=...].
 #include <benchmark/benchmark.h>
 
 #include <chrono>
 #include <cstdio>
+#include <map>
 
+#include "../unit/material/hyperelastic_reference.h"
 #include "../unit/material/material_test_util.h"
 #include "processing/material/fit.h"
 
 namespace {
 
-using hc::material::testing::box_mesh;
-using hc::material::testing::StiffeningReference;
+namespace material = hc::material;
+using material::testing::box_mesh;
+using material::testing::fixture_check;
+using material::testing::StiffeningReference;
 
-const hc::material::Samples& foam_samples() {
-  static const hc::material::Samples samples = [] {
-    StiffeningReference ref(box_mesh(10, 10, 3, 0.05, 0.05, 0.025));
-    hc::material::SynthOptions o = ref.synth_options(48, 0.0);
-    o.probe.radius_m = 0.008;
-    o.max_force_n = 6.0;
-    auto s = hc::material::synthesize_samples(ref.mesh, ref.simulator(), o);
-    hc::material::testing::fixture_check(s.ok(), "synthesize 48 examples");
+hc::TetMesh block(int64_t tets) {
+  if (tets <= 2000) return box_mesh(10, 10, 3, 0.05, 0.05, 0.025);  // 1,800
+  if (tets <= 5000) return box_mesh(10, 10, 5, 0.05, 0.05, 0.025);  // 3,000
+  return box_mesh(17, 14, 7, 0.05, 0.05, 0.025);                    // 9,996
+}
+
+const material::Samples& stiffening_samples(int64_t tets) {
+  static std::map<int64_t, material::Samples> cache;
+  auto it = cache.find(tets);
+  if (it != cache.end()) return it->second;
+  StiffeningReference ref(block(tets));
+  material::SynthOptions o = ref.synth_options(48, 0.0);
+  o.probe.radius_m = 0.008;
+  o.max_force_n = 6.0;
+  auto s = material::synthesize_samples(ref.mesh, ref.simulator(), o);
+  fixture_check(s.ok(), "synthesize 48 examples");
+  return cache.emplace(tets, *s).first->second;
+}
+
+void BM_FitScaling(benchmark::State& state) {
+  const material::Samples& clean = stiffening_samples(state.range(0));
+  const bool joint = state.range(1) != 0;
+  const material::Samples samples =
+      joint ? material::add_displacement_noise(clean, 0.1, 7) : clean;
+  for (auto _ : state) {
+    material::HeterogeneousFitOptions options;
+    if (joint) {
+      options.parameters.regularization = 0.01 * 0.1 * 0.1;
+      options.parameters.poisson_prior = 0.1;
+      options.rbf.max_basis = 3;
+      options.joint.enabled = true;
+    } else {
+      options.parameters.regularization = 1e-6;
+    }
+    material::HeterogeneousFitSummary summary;
+    auto m = material::fit_heterogeneous(samples, options, &summary);
+    fixture_check(m.ok(), "fit");
+    auto ev = material::evaluate_material(material::RbfMaterial(*m), clean, {});
+    fixture_check(ev.ok(), "evaluate");
+    const double n = static_cast<double>(samples.examples.size());
+    const double ktets = static_cast<double>(samples.mesh.num_tets()) / 1000;
+    state.counters["tets"] = static_cast<double>(samples.mesh.num_tets());
+    state.counters["fit_s"] = summary.time_s;
+    state.counters["per_example_s"] = summary.parameter_time_s;
+    state.counters["joint_s"] = summary.joint_time_s;
+    state.counters["s_per_example_per_ktet"] = summary.time_s / n / ktets;
+    state.counters["eval_rel"] = ev->error_rel_max_disp;
+    state.counters["joint_matrix_free"] = summary.joint.matrix_free ? 1 : 0;
+    state.counters["joint_cg"] = static_cast<double>(summary.joint.cg_iterations);
+  }
+}
+BENCHMARK(BM_FitScaling)
+    ->ArgsProduct({{1800, 3000, 9996}, {0, 1}})
+    ->Unit(benchmark::kSecond)
+    ->Iterations(1);
+
+// The shipped noise-study block (processing/material/examples/noise_study_block.json) at 8 x 8 x 4
+// cells.
+const material::Samples& noise_block_samples() {
+  static const material::Samples samples = [] {
+    material::testing::HyperelasticReference ref;
+    ref.mesh = box_mesh(8, 8, 4, 0.04, 0.04, 0.03);
+    ref.layers = {{0.0, 0.01, {150e3, 0.3, 1.0}},
+                  {0.01, 0.02, {60e3, 0.35, 4.0}},
+                  {0.02, 0.03, {30e3, 0.25, 8.0}}};
+    material::SynthOptions o;
+    o.examples = 24;
+    o.seed = 2026;
+    o.probe.shape = "sphere";
+    o.probe.radius_m = 0.01;
+    o.max_force_n = 3.0;
+    o.fixed_nodes = material::testing::bottom_nodes(ref.mesh);
+    auto s = material::synthesize_samples(ref.mesh, ref.simulator(), o);
+    fixture_check(s.ok(), "synthesize the noise-study block");
     return *s;
   }();
   return samples;
 }
 
-void BM_FitHeterogeneous1800Tets48Examples(benchmark::State& state) {
-  const hc::material::Samples& samples = foam_samples();
+void BM_JointNoiseStudy1536(benchmark::State& state) {
+  const material::Samples& clean = noise_block_samples();
+  const material::Samples noisy = material::add_displacement_noise(clean, 0.2, 2026);
   for (auto _ : state) {
-    hc::material::HeterogeneousFitOptions options;
-    options.parameters.regularization = 1e-6;
-    hc::material::HeterogeneousFitSummary summary;
-    auto m = hc::material::fit_heterogeneous(samples, options, &summary);
-    hc::material::testing::fixture_check(m.ok(), "fit");
-    hc::material::RbfMaterial model(*m);
-    auto ev = hc::material::evaluate_material(model, samples, {});
-    hc::material::testing::fixture_check(ev.ok(), "evaluate");
-    state.counters["tets"] = static_cast<double>(samples.mesh.num_tets());
-    state.counters["fit_s"] = summary.time_s;
-    state.counters["lm_s"] = summary.parameter_time_s;
-    state.counters["rbf_s"] = summary.rbf_time_s;
-    state.counters["mean_basis"] = summary.mean_basis_size;
-    state.counters["fit_rms_rel"] = summary.rms_error_m / samples.max_displacement_m();
+    material::HeterogeneousFitOptions options;
+    options.parameters.regularization = 0.01 * 0.2 * 0.2;
+    options.parameters.poisson_prior = 0.1;
+    options.parameters.solver = static_cast<material::FitSolver>(state.range(0));
+    options.rbf.max_basis = 3;
+    options.joint.enabled = true;
+    options.joint.max_jacobian_bytes = 8e9;  // the dense baseline needs ~1.2 GB
+    material::HeterogeneousFitSummary summary;
+    auto m = material::fit_heterogeneous(noisy, options, &summary);
+    fixture_check(m.ok(), "fit");
+    auto ev = material::evaluate_material(material::RbfMaterial(*m), clean, {});
+    fixture_check(ev.ok(), "evaluate");
+    state.counters["tets"] = static_cast<double>(clean.mesh.num_tets());
+    state.counters["per_example_s"] = summary.parameter_time_s;
+    state.counters["joint_s"] = summary.joint_time_s;
+    state.counters["joint_iterations"] = summary.joint.iterations;
+    state.counters["joint_cg"] = static_cast<double>(summary.joint.cg_iterations);
     state.counters["eval_rel"] = ev->error_rel_max_disp;
-    state.counters["eval_s"] = ev->time_s;
   }
+  state.SetLabel(state.range(0) == 1 ? "dense" : "auto");
 }
-BENCHMARK(BM_FitHeterogeneous1800Tets48Examples)->Unit(benchmark::kSecond)->Iterations(1);
+BENCHMARK(BM_JointNoiseStudy1536)->Arg(0)->Arg(1)->Unit(benchmark::kSecond)->Iterations(1);
 
-void BM_OneExampleOwnVsCeres(benchmark::State& state) {
-  const hc::material::Samples& samples = foam_samples();
-  const auto backend =
-      state.range(0) == 0 ? hc::material::FitBackend::kOwnLm : hc::material::FitBackend::kCeres;
-  auto problem = hc::material::ExampleProblem::create(samples.mesh, samples.examples[0]);
-  hc::material::testing::fixture_check(problem.ok(), "problem");
+void BM_OneExampleSolvers(benchmark::State& state) {
+  const material::Samples& samples = stiffening_samples(state.range(0));
+  auto problem = material::ExampleProblem::create(samples.mesh, samples.examples[0]);
+  fixture_check(problem.ok(), "problem");
   for (auto _ : state) {
-    hc::material::ParameterFitOptions options;
+    material::ParameterFitOptions options;
     options.regularization = 1e-6;
-    options.backend = backend;
+    if (state.range(1) == 3) {
+      options.backend = material::FitBackend::kCeres;
+    } else {
+      options.solver = static_cast<material::FitSolver>(state.range(1));
+    }
     std::vector<hc::fem::LambdaAlpha> p;
-    hc::material::ParameterFitSummary s;
-    hc::material::testing::fixture_check(
-        hc::material::fit_example(&*problem, {problem->stiffness_guess()}, options, &p, &s).ok(),
+    material::ParameterFitSummary s;
+    fixture_check(
+        material::fit_example(&*problem, {problem->stiffness_guess()}, options, &p, &s).ok(),
         "fit_example");
     state.counters["iterations"] = s.iterations;
+    state.counters["cg"] = static_cast<double>(s.cg_iterations);
     state.counters["final_cost"] = s.final_cost;
     state.counters["rms_rel"] = s.rms_error_m / problem->scale_m();
   }
-  state.SetLabel(state.range(0) == 0 ? "own LM" : "Ceres");
+  static const char* kNames[] = {"auto", "dense", "matrix-free", "Ceres"};
+  state.SetLabel(kNames[state.range(1)]);
 }
-BENCHMARK(BM_OneExampleOwnVsCeres)->Arg(0)->Arg(1)->Unit(benchmark::kSecond)->Iterations(1);
+BENCHMARK(BM_OneExampleSolvers)
+    ->ArgsProduct({{1800, 3000}, {1, 2, 3}})
+    ->Unit(benchmark::kSecond)
+    ->Iterations(1);
 
 }  // namespace
 

@@ -13,6 +13,7 @@
 #include "processing/material/material.h"
 #include "processing/material/samples.h"
 #include "processing/material/synth.h"
+#include "processing/scene/reference.h"
 #include "processing/scene/scene.h"
 
 namespace hc::cli {
@@ -29,70 +30,8 @@ struct SynthArgs {
   std::uint64_t seed = 1;
   bool surface_only = false;
   bool json = false;
+  int threads = 0;
 };
-
-// Penalty stiffness of the reference model's probe per unit Young's modulus and length (N/m per
-// Pa·m): stiff against the specimen at the scale of an element, so penetration stays small.
-constexpr double kPenaltyPerModulusLength = 50.0;
-
-// The neo-Hookean reference (processing/hyperelastic) under force control, for synthesize_samples.
-material::ReferenceSimulator neo_hookean_simulator(
-    const TetMesh& mesh, const std::vector<hyperelastic::NeoHookeanMaterial>& per_tet,
-    const std::vector<int>& fixed, int steps) {
-  return
-      [&mesh, &per_tet, &fixed, steps](const material::ProbePose& pose,
-                                       double force_n) -> Result<material::ReferenceIndentation> {
-        HC_ASSIGN_OR_RETURN(hyperelastic::NeoHookeanModel model,
-                            hyperelastic::NeoHookeanModel::create(mesh, per_tet));
-        // Start at first contact with a node: the reference's force control takes secant steps in
-        // depth and overshoots when its first steps find no contact.
-        const Eigen::Vector3d d = pose.direction.normalized();
-        double travel = 1e300;
-        for (Eigen::Index n = 0; n < mesh.num_nodes(); ++n) {
-          const Eigen::Vector3d w = mesh.nodes.row(n).transpose() - pose.position_m;
-          const double along = w.dot(d);
-          const Eigen::Vector3d off = w - along * d;
-          if (pose.shape == "sphere") {
-            // |p − (c + t d)| = r  →  t = (p−c)·d − sqrt(r² − |off|²)
-            if (off.squaredNorm() <= pose.radius_m * pose.radius_m)
-              travel = std::min(
-                  travel, along - std::sqrt(pose.radius_m * pose.radius_m - off.squaredNorm()));
-          } else if (off.norm() <= pose.radius_m) {
-            travel = std::min(travel, along);  // flat face reaches the node
-          }
-        }
-        if (travel > 1e299) return invalid_argument("the probe does not reach the specimen");
-        double e_mean = 0;
-        for (const auto& m : per_tet) e_mean += m.youngs_pa / static_cast<double>(per_tet.size());
-        hyperelastic::ProbeOptions po;
-        po.start_position_m = pose.position_m + std::max(travel, 0.0) * d;
-        po.direction = d;
-        po.radius_m = pose.radius_m;
-        po.stiffness_n_per_m = kPenaltyPerModulusLength * e_mean * pose.radius_m;
-        std::unique_ptr<hyperelastic::RigidProbe> probe = pose.shape == "sphere"
-                                                              ? hyperelastic::make_sphere_probe(po)
-                                                              : hyperelastic::make_flat_probe(po);
-        hyperelastic::Boundary boundary;
-        boundary.fixed_nodes = fixed;
-        hyperelastic::IndentOptions io;
-        io.steps = steps;
-        io.force_control = true;
-        io.force_n = force_n;
-        Eigen::VectorXd x = model.rest_positions();
-        hyperelastic::IndentSummary is;
-        HC_RETURN_IF_ERROR(hyperelastic::indent(model, boundary, *probe, io, &x, &is));
-        if (!is.usable) return failed_precondition("reference indentation: " + is.message);
-        material::ReferenceIndentation out;
-        out.positions_m = Eigen::Map<const MatrixX3d>(x.data(), mesh.num_nodes(), 3);
-        out.contact_forces_n = MatrixX3d::Zero(mesh.num_nodes(), 3);
-        for (Eigen::Index n = 0; n < mesh.num_nodes(); ++n) {
-          Eigen::Vector3d grad = Eigen::Vector3d::Zero();
-          probe->node_energy(x.segment<3>(3 * n), &grad, nullptr);
-          out.contact_forces_n.row(n) = -grad.transpose();  // force on the node = −∂E/∂x
-        }
-        return out;
-      };
-}
 
 int run_synth(const GlobalOptions& global, const SynthArgs& args) {
   Context ctx(global);
@@ -107,37 +46,16 @@ int run_synth(const GlobalOptions& global, const SynthArgs& args) {
     return bad("synth needs \"load\": {\"force_n\": F} (the largest example force)");
   if (sc->probe.shape == scene::ProbeSpec::Shape::kMesh)
     return bad("synth supports sphere and flat probes");
+  // The examples are spread over the whole top face, so the specimen is meshed without a contact
+  // in view: the scene's mesh keys, or TetGen's quality mesh (contact_surface.h keeps probes
+  // smaller than its elements from slipping between nodes).
   Result<TetMesh> mesh = scene::build_specimen(sc->specimen);
   if (!mesh.ok()) return ctx.fail(kName, mesh.status());
-  std::vector<hyperelastic::NeoHookeanMaterial> per_tet;
-  const scene::MaterialSpec& ms = sc->material;
-  if (ms.kind == scene::MaterialKind::kNeoHookean || ms.kind == scene::MaterialKind::kLinear) {
-    // A linear scene material is taken as the neo-Hookean with the same small-strain constants:
-    // synthetic samples always come from the hyperelastic reference model.
-    per_tet.assign(static_cast<std::size_t>(mesh->num_tets()),
-                   {ms.youngs_pa, ms.poisson, ms.stiffening});
-  } else if (ms.kind == scene::MaterialKind::kLayered) {
-    std::vector<hyperelastic::MaterialLayer> layers;
-    for (const scene::LayerSpec& l : ms.layers)
-      layers.push_back({l.z_min_m, l.z_max_m, {l.youngs_pa, l.poisson, l.stiffening}});
-    Result<std::vector<hyperelastic::NeoHookeanMaterial>> lm =
-        hyperelastic::layered_materials(*mesh, layers);
-    if (!lm.ok()) return ctx.fail(kName, lm.status());
-    per_tet = std::move(lm).value();
-  } else {
-    return bad("synth needs a neo_hookean, linear or layered material (the reference model)");
-  }
-  std::vector<int> fixed = sc->fixed_nodes;
-  if (sc->fixed_bottom) {
-    const double zmin = mesh->nodes.col(2).minCoeff();
-    const double tol =
-        1e-9 * (mesh->nodes.colwise().maxCoeff() - mesh->nodes.colwise().minCoeff()).norm();
-    fixed.clear();
-    for (Eigen::Index n = 0; n < mesh->num_nodes(); ++n)
-      if (mesh->nodes(n, 2) <= zmin + tol) fixed.push_back(static_cast<int>(n));
-  }
-  std::sort(fixed.begin(), fixed.end());
-  fixed.erase(std::unique(fixed.begin(), fixed.end()), fixed.end());
+  Result<std::vector<hyperelastic::NeoHookeanMaterial>> per_tet =
+      scene::reference_materials(sc->material, *mesh);
+  if (!per_tet.ok()) return bad(per_tet.status().message());
+  Result<std::vector<int>> fixed = scene::fixed_nodes(*sc, *mesh);
+  if (!fixed.ok()) return ctx.fail(kName, fixed.status());
   material::SynthOptions options;
   options.examples = args.examples;
   options.noise = args.noise;
@@ -147,12 +65,15 @@ int run_synth(const GlobalOptions& global, const SynthArgs& args) {
   options.probe.direction = sc->probe.direction.normalized();
   options.max_force_n = sc->load.value;
   options.surface_only = args.surface_only;
-  options.fixed_nodes = fixed;
+  options.fixed_nodes = *fixed;
+  options.threads = args.threads;
   options.progress = ctx.progress();
   if (Status s = options.validate(); !s.ok()) return bad(s.message());
   const auto t0 = std::chrono::steady_clock::now();
   Result<Samples> samples = material::synthesize_samples(
-      *mesh, neo_hookean_simulator(*mesh, per_tet, fixed, std::max(1, sc->steps)), options);
+      *mesh,
+      scene::reference_simulator(*mesh, std::move(per_tet).value(), *fixed, std::max(1, sc->steps)),
+      options);
   if (!samples.ok()) {
     const int code = ctx.fail(kName, samples.status());
     return samples.status().code() == StatusCode::kInvalidArgument ? kExitBadInput : code;
@@ -191,6 +112,7 @@ struct FitArgs {
   int max_basis = material::HeterogeneousFitOptions::RbfOptions{}.max_basis;
   int max_iterations = material::ParameterFitOptions{}.max_iterations;
   std::string backend = "own";
+  std::string solver = "auto";
   int threads = 0;
   bool joint = false;
   double joint_regularization = material::JointRefinementOptions{}.regularization_scale;
@@ -209,6 +131,9 @@ int run_fit(const GlobalOptions& global, const FitArgs& args) {
   options.parameters.max_iterations = args.max_iterations;
   options.parameters.backend =
       args.backend == "ceres" ? material::FitBackend::kCeres : material::FitBackend::kOwnLm;
+  options.parameters.solver = args.solver == "dense"         ? material::FitSolver::kDense
+                              : args.solver == "matrix-free" ? material::FitSolver::kMatrixFree
+                                                             : material::FitSolver::kAuto;
   options.rbf.tolerance = args.tolerance;
   options.rbf.max_basis = args.max_basis;
   options.threads = args.threads;
@@ -245,6 +170,8 @@ int run_fit(const GlobalOptions& global, const FitArgs& args) {
               {"rbf_time_s", summary.rbf_time_s},
               {"joint", args.joint},
               {"joint_time_s", summary.joint_time_s},
+              {"joint_matrix_free", summary.joint.matrix_free},
+              {"joint_cg_iterations", summary.joint.cg_iterations},
               {"unusable_examples", unusable}};
     if (Status s = print_json(j); !s.ok()) return ctx.fail(kName, s);
   } else {
@@ -262,6 +189,7 @@ struct EvaluateArgs {
   std::string samples;
   bool json = false;
   int steps = material::EvaluateOptions{}.steps;
+  int threads = 0;
 };
 
 int run_evaluate(const GlobalOptions& global, const EvaluateArgs& args) {
@@ -273,6 +201,7 @@ int run_evaluate(const GlobalOptions& global, const EvaluateArgs& args) {
   if (!samples.ok()) return ctx.fail(kName, samples.status());
   material::EvaluateOptions options;
   options.steps = args.steps;
+  options.threads = args.threads;
   options.progress = ctx.progress();
   Result<material::EvaluateSummary> ev = material::evaluate_material(**model, *samples, options);
   if (!ev.ok()) {
@@ -335,6 +264,8 @@ void add_material_commands(CLI::App& app, const GlobalOptions& global, int* exit
   sy->add_option("--seed", sa->seed, "Random seed (placement and noise)")->capture_default_str();
   sy->add_flag("--surface-only", sa->surface_only,
                "Mark only boundary nodes visible (like surface markers)");
+  sy->add_option("--threads", sa->threads, "Examples simulated in parallel (0: all cores)")
+      ->check(kNonNegative);
   sy->add_flag("--json", sa->json, "Print one JSON object");
   sy->callback([&global, sa, exit_code] { *exit_code = run_synth(global, *sa); });
 
@@ -373,6 +304,11 @@ void add_material_commands(CLI::App& app, const GlobalOptions& global, int* exit
   h->add_option("--backend", fa->backend, "Optimiser: own LM or Ceres")
       ->check(CLI::IsMember({"own", "ceres"}))
       ->capture_default_str();
+  h->add_option("--solver", fa->solver,
+                "Own LM's linear solver: dense (forms the Jacobian), matrix-free (CG with one FEM "
+                "solve per Jacobian product, memory linear in the mesh) or auto (the cheaper)")
+      ->check(CLI::IsMember({"auto", "dense", "matrix-free"}))
+      ->capture_default_str();
   h->add_option("--threads", fa->threads, "Examples fitted in parallel (0: all cores)")
       ->check(kNonNegative);
   h->add_flag("--joint", fa->joint,
@@ -403,7 +339,11 @@ void add_material_commands(CLI::App& app, const GlobalOptions& global, int* exit
   e->add_option("--material", ea->material, "Material JSON (hardcopy.material)")->required();
   e->add_option("--samples", ea->samples, "Samples JSON (hardcopy.samples)")->required();
   e->add_flag("--json", ea->json, "Print one JSON object");
-  e->add_option("--steps", ea->steps, "Load increments")->check(kPositive)->capture_default_str();
+  e->add_option("--steps", ea->steps, "Load increments")
+      ->check(kPositive)
+      ->capture_default_str();
+  e->add_option("--threads", ea->threads, "Examples simulated in parallel (0: all cores)")
+      ->check(kNonNegative);
   e->callback([&global, ea, exit_code] { *exit_code = run_evaluate(global, *ea); });
 }
 

@@ -139,6 +139,17 @@ int run_simulate(const GlobalOptions& global, const SimulateArgs& args) {
     Json steps = Json::array();
     for (const auto& s : r->steps)
       steps.push_back({{"depth_m", s.depth_m}, {"force_n", s.force_n}});
+    const scene::MeshReport& m = r->mesh_report;
+    Json mesh{{"method", m.method},           {"nodes", m.nodes},
+              {"tets", m.tets},               {"min_edge_m", m.min_edge_m},
+              {"max_edge_m", m.max_edge_m},   {"time_s", m.time_s}};
+    if (m.method == "contact_adaptive") {
+      mesh["focus_m"] = {m.focus_m.x(), m.focus_m.y(), m.focus_m.z()};
+      mesh["patch_radius_m"] = m.patch_radius_m;
+      mesh["fine_size_m"] = m.fine_size_m;
+      mesh["coarse_size_m"] = m.coarse_size_m;
+      mesh["growth"] = m.growth;
+    }
     Json j{{"scene", args.scene},
            {"model", r->model},
            {"force_n", r->force_n},
@@ -147,12 +158,14 @@ int run_simulate(const GlobalOptions& global, const SimulateArgs& args) {
            {"steps", steps},
            {"nodes", r->mesh.num_nodes()},
            {"tets", r->mesh.num_tets()},
+           {"mesh", mesh},
            {"time_s", r->time_s}};
     if (!args.vtu.empty()) j["vtu"] = args.vtu;
     if (Status s = print_json(j); !s.ok()) return ctx.fail("simulate", s);
   } else {
-    fmt::print("{}: {} model, {} nodes, {} tets\n", args.scene, r->model, r->mesh.num_nodes(),
-               r->mesh.num_tets());
+    fmt::print("{}: {} model, {} nodes, {} tets ({} mesh, edges {:.3g} to {:.3g} m)\n", args.scene,
+               r->model, r->mesh.num_nodes(), r->mesh.num_tets(), r->mesh_report.method,
+               r->mesh_report.min_edge_m, r->mesh_report.max_edge_m);
     for (size_t k = 0; k < r->steps.size(); ++k) {
       fmt::print("  step {:3d}: depth {:.6g} m, force {:.6g} N\n", k + 1, r->steps[k].depth_m,
                  r->steps[k].force_n);
@@ -223,7 +236,7 @@ void add_simulate_commands(CLI::App& app, const GlobalOptions& global, int* exit
   s->add_option("SCENE", sargs->scene, "Scene JSON file")->required();
   s->add_flag("--json", sargs->json,
               "Print one JSON object: force_n, depth_m, max_displacement_m, steps, nodes, tets, "
-              "time_s");
+              "mesh (how the specimen was meshed), time_s");
   s->add_option("--vtu", sargs->vtu, "Write the deformed mesh with displacements (.vtu)");
   s->callback([&global, sargs, exit_code] { *exit_code = run_simulate(global, *sargs); });
 

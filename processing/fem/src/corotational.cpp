@@ -558,6 +558,25 @@ void CorotationalFem::add_to_node_block(Eigen::Index node, const Eigen::Matrix3d
   }
 }
 
+void CorotationalFem::add_to_element_block(Eigen::Index e, int a, int b,
+                                           const Eigen::Matrix3d& block) {
+  Impl& s = *impl_;
+  const int fa = s.free_index[static_cast<size_t>(s.mesh.tets(e, a))];
+  const int fb = s.free_index[static_cast<size_t>(s.mesh.tets(e, b))];
+  if (fa < 0 || fb < 0) return;
+  if (a == b) {
+    add_to_node_block(s.mesh.tets(e, a), block);
+    return;
+  }
+  // The scatter map stores the pair with the smaller free index as the row node.
+  const Eigen::Matrix3d m = fa <= fb ? block : Eigen::Matrix3d(block.transpose());
+  const int ra = fa <= fb ? a : b, cb = fa <= fb ? b : a;
+  const int* col = &s.scatter[static_cast<size_t>(e) * 48 + static_cast<size_t>(ra * 4 + cb) * 3];
+  double* values = s.k.valuePtr();
+  for (int c = 0; c < 3; ++c)
+    for (int r = 0; r < 3; ++r) values[col[c] + r] += m(r, c);
+}
+
 const Eigen::VectorXd& CorotationalFem::rest_rhs() const { return impl_->rhs; }
 
 Status CorotationalFem::factorize() { return impl_->cholesky.factorize(impl_->k); }

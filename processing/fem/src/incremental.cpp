@@ -83,6 +83,7 @@ Status run_incremental(CorotationalFem* fem, const MaterialModel& material, cons
   update_params_from_strain(fem, material);
   HC_ASSIGN_OR_RETURN(ContactSolver contact, ContactSolver::create(fem, probe, options.contact));
   if (options.update_within_step) contact.set_material(&material);
+  ProgressTask task(options.progress, "load steps", static_cast<std::uint64_t>(options.steps));
   for (int k = 1; k <= options.steps; ++k) {
     // Explicit update: parameters from the strain of the last converged step.
     fem->update_rotations();
@@ -93,6 +94,7 @@ Status run_incremental(CorotationalFem* fem, const MaterialModel& material, cons
     summary->total_iterations += cs.iterations;
     if (!st.ok()) return st.with_context("load step " + std::to_string(k));
     summary->steps.push_back({cs.depth_m, cs.force_n, cs.iterations});
+    task.advance();
   }
   summary->max_displacement_m = max_displacement(*fem);
   summary->converged = true;

@@ -38,7 +38,75 @@ class FemProbeContact final : public RigidProbe {
   double depth_ = 0;
 };
 
+class FemSurfaceContact final : public RigidProbe {
+ public:
+  FemSurfaceContact(std::unique_ptr<fem::Probe> probe, const fem::ContactSurface& surface,
+                    std::vector<double> k)
+      : probe_(std::move(probe)), start_(probe_->pose()), surface_(surface), k_(std::move(k)) {}
+
+  void set_depth(double depth_m) override {
+    depth_ = depth_m;
+    probe_->set_pose(start_);
+    probe_->advance(depth_m);
+  }
+  double depth() const override { return depth_; }
+  Eigen::Vector3d direction() const override { return probe_->direction(); }
+
+  double energy(const Eigen::VectorXd& x, Eigen::VectorXd* grad,
+                std::vector<Eigen::Triplet<double>>* hessian, bool /*project*/) const override {
+    const Eigen::Map<const MatrixX3d> pos(x.data(), x.size() / 3, 3);
+    const std::vector<fem::ContactPoint>& points = surface_.points();
+    double e = 0;
+    for (std::size_t i = 0; i < points.size(); ++i) {
+      if (!(k_[i] > 0)) continue;
+      const fem::ContactPoint& p = points[i];
+      Eigen::Vector3d xp = Eigen::Vector3d::Zero();
+      const int terms = p.is_node() ? 1 : 3;
+      for (int a = 0; a < terms; ++a)
+        xp += p.weights(a) * pos.row(p.nodes[static_cast<std::size_t>(a)]).transpose();
+      Eigen::Vector3d n;
+      const double s = probe_->signed_distance(xp, &n);
+      if (!(s < 0)) continue;
+      e += 0.5 * k_[i] * s * s;
+      for (int a = 0; a < terms; ++a) {
+        const int na = p.nodes[static_cast<std::size_t>(a)];
+        if (grad != nullptr) grad->segment<3>(3 * na) += p.weights(a) * k_[i] * s * n;
+        if (hessian == nullptr) continue;
+        // Gauss–Newton k w_a w_b n nᵀ: positive semi-definite as it is.
+        for (int b = 0; b < terms; ++b) {
+          const int nb = p.nodes[static_cast<std::size_t>(b)];
+          const Eigen::Matrix3d block = k_[i] * p.weights(a) * p.weights(b) * n * n.transpose();
+          for (int r = 0; r < 3; ++r)
+            for (int c = 0; c < 3; ++c)
+              hessian->emplace_back(3 * na + r, 3 * nb + c, block(r, c));
+        }
+      }
+    }
+    return e;
+  }
+
+ private:
+  std::unique_ptr<fem::Probe> probe_;
+  Eigen::Isometry3d start_;
+  fem::ContactSurface surface_;
+  std::vector<double> k_;
+  double depth_ = 0;
+};
+
 }  // namespace
+
+Result<std::unique_ptr<RigidProbe>> make_fem_surface_contact(const fem::Probe& probe,
+                                                             const fem::ContactSurface& surface,
+                                                             std::vector<double> stiffness) {
+  if (stiffness.size() != surface.points().size())
+    return invalid_argument(fmt::format("{} contact stiffnesses for {} contact points",
+                                        stiffness.size(), surface.points().size()));
+  for (double k : stiffness)
+    if (!(std::isfinite(k) && k >= 0))
+      return invalid_argument(fmt::format("contact stiffness {} N/m must be >= 0 and finite", k));
+  return std::unique_ptr<RigidProbe>(
+      std::make_unique<FemSurfaceContact>(probe.clone(), surface, std::move(stiffness)));
+}
 
 Result<std::unique_ptr<RigidProbe>> make_fem_probe_contact(const fem::Probe& probe,
                                                            double stiffness_n_per_m) {

@@ -211,14 +211,47 @@ std::unique_ptr<RigidProbe> make_flat_probe(const ProbeOptions& options) {
   return std::make_unique<FlatProbe>(options);
 }
 
-Eigen::Vector3d contact_force(const ContactPotential& c, const Eigen::VectorXd& x) {
-  Eigen::Vector3d total = Eigen::Vector3d::Zero();
+double ContactPotential::node_energy(const Eigen::Vector3d&, Eigen::Vector3d*,
+                                     Eigen::Matrix3d*) const {
+  return 0;
+}
+
+double ContactPotential::energy(const Eigen::VectorXd& x, Eigen::VectorXd* grad,
+                                std::vector<Eigen::Triplet<double>>* hessian, bool project) const {
+  double e = 0;
   for (Eigen::Index i = 0; i < x.size() / 3; ++i) {
-    Eigen::Vector3d g = Eigen::Vector3d::Zero();
-    c.node_energy(x.segment<3>(3 * i), &g, nullptr);
-    total -= g;
+    Eigen::Vector3d gi = Eigen::Vector3d::Zero();
+    Eigen::Matrix3d hi = Eigen::Matrix3d::Zero();
+    const double ei = node_energy(x.segment<3>(3 * i), grad != nullptr ? &gi : nullptr,
+                                  hessian != nullptr ? &hi : nullptr);
+    if (ei == 0 && gi.isZero()) continue;
+    e += ei;
+    if (grad != nullptr) grad->segment<3>(3 * i) += gi;
+    if (hessian != nullptr) {
+      if (project) {
+        Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es(hi);
+        hi = es.eigenvectors() * es.eigenvalues().cwiseMax(0.0).asDiagonal() *
+             es.eigenvectors().transpose();
+      }
+      for (int a = 0; a < 3; ++a)
+        for (int b = 0; b < 3; ++b)
+          hessian->emplace_back(static_cast<int>(3 * i + a), static_cast<int>(3 * i + b),
+                                hi(a, b));
+    }
   }
-  return total;
+  return e;
+}
+
+Eigen::Vector3d contact_force(const ContactPotential& c, const Eigen::VectorXd& x) {
+  Eigen::VectorXd g = Eigen::VectorXd::Zero(x.size());
+  c.energy(x, &g, nullptr, false);
+  return -Eigen::Map<const MatrixX3d>(g.data(), x.size() / 3, 3).colwise().sum().transpose();
+}
+
+MatrixX3d contact_forces(const ContactPotential& c, const Eigen::VectorXd& x) {
+  Eigen::VectorXd g = Eigen::VectorXd::Zero(x.size());
+  c.energy(x, &g, nullptr, false);
+  return -Eigen::Map<const MatrixX3d>(g.data(), x.size() / 3, 3);
 }
 
 // ---- The discrete model ----

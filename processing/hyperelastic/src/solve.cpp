@@ -36,27 +36,8 @@ struct Potential {
     }
     if (!boundary.contacts.empty()) {
       std::vector<Eigen::Triplet<double>> trip;
-      const Eigen::Index n = x.size() / 3;
-      for (const ContactPotential* c : boundary.contacts) {
-        for (Eigen::Index i = 0; i < n; ++i) {
-          Eigen::Vector3d gi = Eigen::Vector3d::Zero();
-          Eigen::Matrix3d hi = Eigen::Matrix3d::Zero();
-          const double ei = c->node_energy(x.segment<3>(3 * i), g != nullptr ? &gi : nullptr,
-                                           H != nullptr ? &hi : nullptr);
-          if (ei == 0 && gi.isZero()) continue;
-          e += ei;
-          if (g != nullptr) g->segment<3>(3 * i) += gi;
-          if (H != nullptr) {
-            if (project) {
-              Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es(hi);
-              hi = es.eigenvectors() * es.eigenvalues().cwiseMax(0.0).asDiagonal() *
-                   es.eigenvectors().transpose();
-            }
-            for (int a = 0; a < 3; ++a)
-              for (int b = 0; b < 3; ++b) trip.emplace_back(3 * i + a, 3 * i + b, hi(a, b));
-          }
-        }
-      }
+      for (const ContactPotential* c : boundary.contacts)
+        e += c->energy(x, g, H != nullptr ? &trip : nullptr, project);
       if (H != nullptr && !trip.empty()) {
         Eigen::SparseMatrix<double> C(H->rows(), H->cols());
         C.setFromTriplets(trip.begin(), trip.end());
@@ -404,6 +385,7 @@ Status indent(const NeoHookeanModel& model, const Boundary& boundary, RigidProbe
     st.depth_m = depth;
     st.force_n = force;
     sum.steps.push_back(st);
+    if (options.record_positions) sum.positions.push_back(*x);
     if (options.solve.progress != nullptr)
       options.solve.progress->update(static_cast<std::uint64_t>(i));
   }

@@ -67,8 +67,35 @@ struct ExampleProblem::Impl {
   LambdaAlpha guess;
   std::vector<fem::Matrix12d> kg, kh;
   std::vector<std::array<int, 12>> dofs;
+  // g_e = R_e (dK_e/dp) (R_eᵀ x_e − X_e) for p = λ_e, α_e at the last solve (Appendix A, Eq.
+  // A.2–A.3), computed on first use after each solve.
+  mutable std::vector<fem::Vector12d> g_lambda, g_alpha;
+  mutable bool sensitivities_current = false;
+
+  void sensitivities() const {
+    if (sensitivities_current) return;
+    const Eigen::Index t = fem.num_elements();
+    g_lambda.resize(static_cast<std::size_t>(t));
+    g_alpha.resize(static_cast<std::size_t>(t));
+    for (Eigen::Index e = 0; e < t; ++e) {
+      const Eigen::Matrix3d& r = fem.rotation(e);
+      const fem::Vector12d x = fem.current_positions(e);
+      const fem::Vector12d x0 = fem.rest_positions(e);
+      fem::Vector12d u;
+      for (int a = 0; a < 4; ++a)
+        u.segment<3>(3 * a) = r.transpose() * x.segment<3>(3 * a) - x0.segment<3>(3 * a);
+      const fem::Vector12d gl = kg[static_cast<std::size_t>(e)] * u;
+      const fem::Vector12d ga = kh[static_cast<std::size_t>(e)] * u;
+      for (int a = 0; a < 4; ++a) {
+        g_lambda[static_cast<std::size_t>(e)].segment<3>(3 * a) = r * gl.segment<3>(3 * a);
+        g_alpha[static_cast<std::size_t>(e)].segment<3>(3 * a) = r * ga.segment<3>(3 * a);
+      }
+    }
+    sensitivities_current = true;
+  }
 
   Status solve_at(const std::vector<LambdaAlpha>& p) {
+    sensitivities_current = false;
     HC_RETURN_IF_ERROR(fem.set_params(p));
     fem.assemble();
     HC_RETURN_IF_ERROR(fem.factorize());
@@ -180,7 +207,14 @@ Eigen::Matrix<double, Eigen::Dynamic, 6> ExampleProblem::strains() const {
   return impl_->fem.strains();
 }
 
-void ExampleProblem::update_rotations() { impl_->fem.update_rotations(); }
+void ExampleProblem::update_rotations() {
+  impl_->sensitivities_current = false;
+  impl_->fem.update_rotations();
+}
+Eigen::Index ExampleProblem::num_free_dofs() const { return impl_->fem.num_free_dofs(); }
+double ExampleProblem::factor_entries() const {
+  return impl_->fem.cholesky().summary().nnz_factor;
+}
 
 Status ExampleProblem::simulate(const std::vector<LambdaAlpha>& p, Eigen::VectorXd* residual) {
   HC_RETURN_IF_ERROR(impl_->solve_at(p));
@@ -203,23 +237,9 @@ Status ExampleProblem::jacobian(Eigen::MatrixXd* j, const std::vector<int>* grou
     return 2 * (groups ? (*groups)[static_cast<std::size_t>(e)] : e);
   };
 
-  // g_e = R_e (dK_e/dp) (R_eᵀ x_e − X_e) for p = λ_e and α_e (Appendix A, Eq. A.2–A.3).
-  std::vector<fem::Vector12d> g_lambda(static_cast<std::size_t>(t)),
-      g_alpha(static_cast<std::size_t>(t));
-  for (Eigen::Index e = 0; e < t; ++e) {
-    const Eigen::Matrix3d& r = fem.rotation(e);
-    const fem::Vector12d x = fem.current_positions(e);
-    const fem::Vector12d x0 = fem.rest_positions(e);
-    fem::Vector12d u;
-    for (int a = 0; a < 4; ++a)
-      u.segment<3>(3 * a) = r.transpose() * x.segment<3>(3 * a) - x0.segment<3>(3 * a);
-    const fem::Vector12d gl = impl_->kg[static_cast<std::size_t>(e)] * u;
-    const fem::Vector12d ga = impl_->kh[static_cast<std::size_t>(e)] * u;
-    for (int a = 0; a < 4; ++a) {
-      g_lambda[static_cast<std::size_t>(e)].segment<3>(3 * a) = r * gl.segment<3>(3 * a);
-      g_alpha[static_cast<std::size_t>(e)].segment<3>(3 * a) = r * ga.segment<3>(3 * a);
-    }
-  }
+  impl_->sensitivities();
+  const std::vector<fem::Vector12d>& g_lambda = impl_->g_lambda;
+  const std::vector<fem::Vector12d>& g_alpha = impl_->g_alpha;
 
   j->setZero(m, cols);
   if (cols <= m) {
@@ -258,6 +278,73 @@ Status ExampleProblem::jacobian(Eigen::MatrixXd* j, const std::vector<int>* grou
       j->col(c + 1) -= g_alpha[static_cast<std::size_t>(e)](k) * zt.col(dof);
     }
   }
+  return {};
+}
+
+}  // namespace hc::material
+
+namespace hc::material {
+
+Status ExampleProblem::apply_jacobian(const Eigen::VectorXd& v, Eigen::VectorXd* jv) const {
+  const Impl& s = *impl_;
+  const Eigen::Index t = s.fem.num_elements();
+  if (!s.fem.cholesky().factorized()) return failed_precondition("jacobian: call simulate() first");
+  if (v.size() != 2 * t) return invalid_argument("apply_jacobian: v needs 2 entries per element");
+  s.sensitivities();
+  // J v = −S K⁻¹ Σ_e (v_λe g_λe + v_αe g_αe).
+  Eigen::VectorXd b = Eigen::VectorXd::Zero(s.fem.num_free_dofs());
+  for (Eigen::Index e = 0; e < t; ++e) {
+    const auto ue = static_cast<std::size_t>(e);
+    const fem::Vector12d ge = v(2 * e) * s.g_lambda[ue] + v(2 * e + 1) * s.g_alpha[ue];
+    const auto& d = s.dofs[ue];
+    for (int k = 0; k < 12; ++k)
+      if (d[static_cast<std::size_t>(k)] >= 0) b(d[static_cast<std::size_t>(k)]) += ge(k);
+  }
+  Eigen::VectorXd y;
+  HC_RETURN_IF_ERROR(s.fem.cholesky().solve(b, &y));
+  jv->resize(num_measurements());
+  for (std::size_t i = 0; i < s.measured_dofs.size(); ++i)
+    (*jv)(static_cast<Eigen::Index>(i)) = -y(s.measured_dofs[i]);
+  return {};
+}
+
+Status ExampleProblem::apply_jacobian_transpose(const Eigen::MatrixXd& w,
+                                                Eigen::MatrixXd* jtw) const {
+  const Impl& s = *impl_;
+  const Eigen::Index t = s.fem.num_elements();
+  if (!s.fem.cholesky().factorized()) return failed_precondition("jacobian: call simulate() first");
+  if (w.rows() != num_measurements())
+    return invalid_argument("apply_jacobian_transpose: w needs one row per measurement");
+  s.sensitivities();
+  // Jᵀ w = −Gᵀ K⁻¹ Sᵀ w (K symmetric: the adjoint solve uses the same factor).
+  Eigen::MatrixXd b = Eigen::MatrixXd::Zero(s.fem.num_free_dofs(), w.cols());
+  for (std::size_t i = 0; i < s.measured_dofs.size(); ++i)
+    b.row(s.measured_dofs[i]) = w.row(static_cast<Eigen::Index>(i));
+  Eigen::MatrixXd z;
+  HC_RETURN_IF_ERROR(s.fem.cholesky().solve(b, &z));
+  jtw->resize(2 * t, w.cols());
+  for (Eigen::Index e = 0; e < t; ++e) {
+    const auto ue = static_cast<std::size_t>(e);
+    const auto& d = s.dofs[ue];
+    Eigen::RowVectorXd gl = Eigen::RowVectorXd::Zero(w.cols());
+    Eigen::RowVectorXd ga = Eigen::RowVectorXd::Zero(w.cols());
+    for (int k = 0; k < 12; ++k) {
+      const int dof = d[static_cast<std::size_t>(k)];
+      if (dof < 0) continue;
+      gl += s.g_lambda[ue](k) * z.row(dof);
+      ga += s.g_alpha[ue](k) * z.row(dof);
+    }
+    jtw->row(2 * e) = -gl;
+    jtw->row(2 * e + 1) = -ga;
+  }
+  return {};
+}
+
+Status ExampleProblem::apply_jacobian_transpose(const Eigen::VectorXd& w,
+                                                Eigen::VectorXd* jtw) const {
+  Eigen::MatrixXd out;
+  HC_RETURN_IF_ERROR(apply_jacobian_transpose(Eigen::MatrixXd(w), &out));
+  *jtw = out.col(0);
   return {};
 }
 

@@ -44,8 +44,8 @@ Result<Material> fit_heterogeneous(const Samples& samples, const HeterogeneousFi
   // (one example keeps them: nothing else runs beside its factorisations).
   std::optional<fem::SingleThreadedBlasScope> blas;
   if (n > 1) blas.emplace();
-  if (options.joint.enabled) {
-    // Fail before the per-example fits when the joint fit's Jacobian would be too large.
+  if (options.joint.enabled && options.parameters.solver == FitSolver::kDense) {
+    // Fail before the per-example fits when the dense joint fit's Jacobian would be too large.
     double rows = 0;
     for (const Example& ex : samples.examples)
       for (std::size_t k = 0; k < ex.visible.size(); ++k)
@@ -56,8 +56,8 @@ Result<Material> fit_heterogeneous(const Samples& samples, const HeterogeneousFi
         8.0 * rows * options.joint.parameters_per_tet() * static_cast<double>(t);
     if (bytes > options.joint.max_jacobian_bytes)
       return failed_precondition(fmt::format(
-          "joint material fit: its Jacobian would take {:.1f} GB (limit {:.1f} GB); use fewer "
-          "examples or the per-example pipeline",
+          "joint material fit: its dense Jacobian would take {:.1f} GB (limit {:.1f} GB); use "
+          "the matrix-free solver",
           bytes / 1e9, options.joint.max_jacobian_bytes / 1e9));
   }
 
@@ -138,10 +138,10 @@ Result<Material> fit_heterogeneous(const Samples& samples, const HeterogeneousFi
   if (options.joint.enabled) {
     std::vector<ExampleProblem*> ptrs;
     for (auto& p : problems) ptrs.push_back(&*p);
-    if (options.progress) options.progress->begin("joint material fit", 1);
+    JointRefinementOptions joint_options = options.joint;
+    if (joint_options.progress == nullptr) joint_options.progress = options.progress;
     Result<Material> joint_material =
-        fit_joint_material(ptrs, &strains, params, options.parameters, options.joint, &joint);
-    if (options.progress) options.progress->end("");
+        fit_joint_material(ptrs, &strains, params, options.parameters, joint_options, &joint);
     if (!joint_material.ok()) return joint_material.status().with_context("joint material fit");
     material = std::move(joint_material).value();
     for (Eigen::Index e = 0; e < t; ++e)
@@ -177,6 +177,7 @@ Result<EvaluateSummary> evaluate_material(const fem::MaterialModel& material,
                                           const Samples& samples, const EvaluateOptions& options) {
   HC_RETURN_IF_ERROR(validate_samples(samples));
   if (options.steps < 1) return invalid_argument("steps: must be >= 1");
+  if (options.threads < 0) return invalid_argument("threads: must be >= 0");
   if (material.num_elements() >= 0 && material.num_elements() != samples.mesh.num_tets())
     return invalid_argument(fmt::format("the material describes {} elements, the mesh has {} tets",
                                         material.num_elements(), samples.mesh.num_tets()));
@@ -192,6 +193,10 @@ Result<EvaluateSummary> evaluate_material(const fem::MaterialModel& material,
   std::vector<Eigen::Index> counts(n, 0);
   std::atomic<std::uint64_t> done{0};
   if (options.progress) options.progress->begin("evaluate examples", n);
+  std::optional<tbb::global_control> limit;
+  if (options.threads > 0)
+    limit.emplace(tbb::global_control::max_allowed_parallelism,
+                  static_cast<std::size_t>(options.threads));
   tbb::parallel_for(std::size_t{0}, n, [&](std::size_t i) {
     const Example& ex = samples.examples[i];
     const auto run = [&]() -> Status {

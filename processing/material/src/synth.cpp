@@ -1,12 +1,17 @@
 #include "processing/material/synth.h"
 
 #include <fmt/format.h>
+#include <tbb/global_control.h>
+#include <tbb/parallel_for.h>
 
 #include <algorithm>
 #include <array>
 #include <cmath>
 #include <map>
+#include <optional>
 #include <random>
+
+#include "processing/fem/blas_threads.h"
 
 namespace hc::material {
 namespace {
@@ -35,6 +40,7 @@ Status SynthOptions::validate() const {
   if (probe.shape != "sphere" && probe.shape != "flat" && probe.shape != "mesh")
     return invalid_argument(fmt::format("probe shape '{}' cannot indent", probe.shape));
   if (fixed_nodes.empty()) return invalid_argument("no fixed nodes");
+  if (threads < 0) return invalid_argument("--threads: must be >= 0");
   if (!probe.direction.allFinite() || probe.direction.norm() < 1e-12)
     return invalid_argument("probe direction must be a non-zero vector");
   return {};
@@ -80,8 +86,6 @@ Samples add_displacement_noise(const Samples& clean, double noise, std::uint64_t
 Result<Samples> synthesize_samples(const TetMesh& mesh, const ReferenceSimulator& simulate,
                                    const SynthOptions& options) {
   HC_RETURN_IF_ERROR(options.validate());
-  Samples samples;
-  samples.mesh = mesh;
   const Eigen::Vector3d lo = mesh.nodes.colwise().minCoeff();
   const Eigen::Vector3d hi = mesh.nodes.colwise().maxCoeff();
   const Eigen::Vector3d size = hi - lo;
@@ -89,39 +93,59 @@ Result<Samples> synthesize_samples(const TetMesh& mesh, const ReferenceSimulator
   const std::vector<int> surface = boundary_nodes(mesh);
   std::mt19937_64 rng(options.seed);
   std::uniform_real_distribution<double> unit(0.0, 1.0);
-  if (options.progress)
-    options.progress->begin("synthesize examples", static_cast<std::uint64_t>(options.examples));
   // Stratified placement: a near-square grid of cells over the top face, one jittered probe per
-  // cell (cells reused round-robin when there are more examples than cells).
+  // cell (cells reused round-robin when there are more examples than cells). Placements and force
+  // levels are drawn first, in order, so that they do not depend on the threads.
   const int cols = static_cast<int>(std::ceil(std::sqrt(static_cast<double>(options.examples))));
   const int rows = (options.examples + cols - 1) / cols;
-  for (int k = 0; k < options.examples; ++k) {
-    const int cx = k % cols, cy = (k / cols) % rows;
+  const auto count = static_cast<std::size_t>(options.examples);
+  std::vector<ProbePose> probes(count);
+  std::vector<double> forces(count);
+  for (std::size_t k = 0; k < count; ++k) {
+    const int cx = static_cast<int>(k) % cols, cy = (static_cast<int>(k) / cols) % rows;
     const double fx = (cx + unit(rng)) / cols, fy = (cy + unit(rng)) / rows;
     const double m = options.margin_fraction;
-    ProbePose probe = options.probe;
+    ProbePose& probe = probes[k];
+    probe = options.probe;
     probe.direction = dir;
     const double x = lo.x() + size.x() * (m + (1 - 2 * m) * fx);
     const double y = lo.y() + size.y() * (m + (1 - 2 * m) * fy);
-    // Start just touching the top face's plane (for a downward probe): reference models that
-    // search the depth for a force by secant steps do badly when the first steps find no contact.
-    const double lift = probe.radius_m;
-    probe.position_m = Eigen::Vector3d(x, y, hi.z()) - lift * dir;
+    // Start just touching the top face's plane (for a downward probe); the reference model moves
+    // it on to first contact with the specimen's boundary.
+    probe.position_m = Eigen::Vector3d(x, y, hi.z()) - probe.radius_m * dir;
     const double random_level =
         options.min_force_fraction + (1 - options.min_force_fraction) * unit(rng);
-    const double force =
-        options.max_force_n *
-        (options.force_levels.empty()
-             ? random_level
-             : options.force_levels[static_cast<std::size_t>(k) % options.force_levels.size()]);
-    Result<ReferenceIndentation> sim = simulate(probe, force);
+    forces[k] = options.max_force_n *
+                (options.force_levels.empty()
+                     ? random_level
+                     : options.force_levels[k % options.force_levels.size()]);
+  }
+  std::vector<Result<ReferenceIndentation>> sims(count, internal_error("not simulated"));
+  ProgressTask task(options.progress, "synthesize examples", count);
+  {
+    // One reference solve per example on every core: OpenBLAS single-threaded meanwhile.
+    std::optional<fem::SingleThreadedBlasScope> blas;
+    if (count > 1 && options.threads != 1) blas.emplace();
+    std::optional<tbb::global_control> limit;
+    if (options.threads > 0)
+      limit.emplace(tbb::global_control::max_allowed_parallelism,
+                    static_cast<std::size_t>(options.threads));
+    tbb::parallel_for(std::size_t{0}, count, [&](std::size_t k) {
+      sims[k] = simulate(probes[k], forces[k]);
+      task.advance();
+    });
+  }
+  Samples samples;
+  samples.mesh = mesh;
+  for (std::size_t k = 0; k < count; ++k) {
+    Result<ReferenceIndentation>& sim = sims[k];
     if (!sim.ok()) return sim.status().with_context(fmt::format("synth example {}", k));
     if (sim->positions_m.rows() != mesh.num_nodes() ||
         sim->contact_forces_n.rows() != mesh.num_nodes())
       return internal_error(fmt::format("synth example {}: simulator returned wrong sizes", k));
     Example ex;
     ex.name = fmt::format("synth{:03d}", k);
-    ex.probe = probe;
+    ex.probe = probes[k];
     ex.fixed_nodes = options.fixed_nodes;
     ex.positions_m = sim->positions_m;
     for (int n : ex.fixed_nodes) ex.positions_m.row(n) = mesh.nodes.row(n);
@@ -136,9 +160,7 @@ Result<Samples> synthesize_samples(const TetMesh& mesh, const ReferenceSimulator
     if (options.surface_only)
       for (int n : surface) ex.visible[static_cast<std::size_t>(n)] = 1;
     samples.examples.push_back(std::move(ex));
-    if (options.progress) options.progress->update(static_cast<std::uint64_t>(k + 1));
   }
-  if (options.progress) options.progress->end("");
   Samples noisy = add_displacement_noise(samples, options.noise, options.seed);
   HC_RETURN_IF_ERROR(validate_samples(noisy));
   return noisy;

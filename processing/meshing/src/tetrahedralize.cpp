@@ -69,13 +69,35 @@ Result<TetMesh> run_tetgen(tetgenio& in, const TetrahedralizeOptions& options,
   if (region_attributes && switches.find('A') == std::string::npos)
     switches = "pA" + switches.substr(1);
   tetgenio out;
+  tetgenio background;  // the sizing function's background mesh (TetGen 'm')
+  if (options.edge_size) {
+    Eigen::AlignedBox3d box;
+    for (int i = 0; i < in.numberofpoints; ++i)
+      box.extend(Eigen::Vector3d(in.pointlist[3 * i], in.pointlist[3 * i + 1],
+                                 in.pointlist[3 * i + 2]));
+    HC_ASSIGN_OR_RETURN(const TetMesh bg, background_mesh(options.edge_size, box));
+    background.firstnumber = 0;
+    background.numberofpoints = static_cast<int>(bg.num_nodes());
+    background.pointlist = new REAL[static_cast<std::size_t>(3 * bg.num_nodes())];
+    std::memcpy(background.pointlist, bg.nodes.data(),
+                static_cast<std::size_t>(3 * bg.num_nodes()) * sizeof(double));
+    background.numberofpointmtrs = 1;
+    background.pointmtrlist = new REAL[static_cast<std::size_t>(bg.num_nodes())];
+    for (Eigen::Index i = 0; i < bg.num_nodes(); ++i)
+      background.pointmtrlist[i] = bg.node_attributes(i, 0);
+    background.numberofcorners = 4;
+    background.numberoftetrahedra = static_cast<int>(bg.num_tets());
+    background.tetrahedronlist = new int[static_cast<std::size_t>(4 * bg.num_tets())];
+    std::memcpy(background.tetrahedronlist, bg.tets.data(),
+                static_cast<std::size_t>(4 * bg.num_tets()) * sizeof(int));
+  }
   try {
     tetgenbehavior b;
     std::vector<char> sw(switches.begin(), switches.end());
     sw.push_back('\0');
     if (!b.parse_commandline(sw.data()))
       return internal_error(fmt::format("TetGen rejected the switches \"{}\"", switches));
-    tetrahedralize(&b, &in, &out);
+    tetrahedralize(&b, &in, &out, nullptr, options.edge_size ? &background : nullptr);
   } catch (int code) {
     return invalid_argument(fmt::format("{}: {}", what, tetgen_error(code)));
   } catch (const std::exception& e) {
@@ -176,6 +198,7 @@ std::string TetrahedralizeOptions::tetgen_switches() const {
     if (min_dihedral_deg > 0) s += fmt::format("/{}", min_dihedral_deg);
   }
   if (max_volume > 0) s += fmt::format("a{}", max_volume);
+  if (edge_size) s += "m";
   if (!regions.empty()) {
     s += "A";
     const bool per_region = std::any_of(regions.begin(), regions.end(),

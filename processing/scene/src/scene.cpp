@@ -1,6 +1,9 @@
 #include "processing/scene/scene.h"
 
+#include <algorithm>
 #include <chrono>
+#include <limits>
+#include <memory>
 #include <cmath>
 #include <string>
 
@@ -12,10 +15,12 @@
 #include "processing/fem/incremental.h"
 #include "processing/fem/material_model.h"
 #include "processing/fem/probe.h"
-#include "processing/hyperelastic/fem_probe.h"
+#include "processing/hyperelastic/reference_indentation.h"
 #include "processing/hyperelastic/neo_hookean.h"
 #include "processing/material/material.h"
 #include "processing/meshing/tetrahedralize.h"
+#include "processing/scene/contact_meshing.h"
+#include "processing/scene/reference.h"
 
 namespace hc::scene {
 
@@ -201,59 +206,7 @@ Result<Scene> read_scene(const std::filesystem::path& path) {
   return parse_scene(text, path.string(), path.parent_path());
 }
 
-Result<TetMesh> build_specimen(const SpecimenSpec& spec) {
-  if (spec.kind == SpecimenSpec::Kind::kBox) {
-    const Eigen::Vector3d size = spec.box_m * spec.scale_to_m;
-    if (spec.cells) return meshing::structured_box(size, *spec.cells);
-    meshing::TetrahedralizeOptions options;
-    options.max_radius_edge_ratio = 1.414;
-    options.max_volume = spec.max_tet_volume_m3;
-    return meshing::box_tet_mesh(size, options);
-  }
-  HC_ASSIGN_OR_RETURN(TriangleMesh surface, read_mesh(spec.mesh));
-  surface.vertices *= spec.scale_to_m;
-  meshing::TetrahedralizeOptions options;
-  options.max_radius_edge_ratio = 1.414;
-  options.max_volume = spec.max_tet_volume_m3;
-  return meshing::tetrahedralize(surface, options);
-}
-
 namespace {
-
-Result<std::unique_ptr<fem::Probe>> build_probe(const ProbeSpec& p) {
-  switch (p.shape) {
-    case ProbeSpec::Shape::kSphere:
-      return fem::make_sphere_probe(p.radius_m, p.position_m, p.direction);
-    case ProbeSpec::Shape::kFlat:
-      return fem::make_flat_probe(p.radius_m, p.position_m, p.direction);
-    case ProbeSpec::Shape::kMesh: {
-      HC_ASSIGN_OR_RETURN(TriangleMesh m, read_mesh(p.mesh));
-      m.vertices *= p.scale_to_m;
-      return fem::make_mesh_probe(m, p.position_m, p.direction);
-    }
-  }
-  return internal_error("unknown probe shape");
-}
-
-Result<std::vector<int>> fixed_nodes(const Scene& scene, const TetMesh& mesh) {
-  if (!scene.fixed_bottom) {
-    for (int n : scene.fixed_nodes) {
-      if (n >= mesh.num_nodes()) {
-        return invalid_argument("scene: fixed node " + std::to_string(n) +
-                                " out of range (mesh has " + std::to_string(mesh.num_nodes()) +
-                                " nodes)");
-      }
-    }
-    return scene.fixed_nodes;
-  }
-  const double zmin = mesh.nodes.col(2).minCoeff();
-  const double size = (mesh.nodes.colwise().maxCoeff() - mesh.nodes.colwise().minCoeff()).norm();
-  std::vector<int> out;
-  for (Eigen::Index i = 0; i < mesh.num_nodes(); ++i) {
-    if (mesh.nodes(i, 2) <= zmin + 1e-9 * size) out.push_back(static_cast<int>(i));
-  }
-  return out;
-}
 
 // Per-element linear parameters of a layered list (tet centroid z decides, like hyperelastic).
 Result<std::vector<fem::LambdaAlpha>> layered_linear(const std::vector<LayerSpec>& layers,
@@ -277,60 +230,25 @@ Result<std::vector<fem::LambdaAlpha>> layered_linear(const std::vector<LayerSpec
 
 Result<SimulationResult> run_neo_hookean(const Scene& scene, const TetMesh& mesh,
                                          const std::vector<int>& fixed, const fem::Probe& probe) {
-  std::vector<hyperelastic::NeoHookeanMaterial> materials;
-  double e_ref = scene.material.youngs_pa, nu_ref = scene.material.poisson;
-  if (scene.material.kind == MaterialKind::kLayered) {
-    std::vector<hyperelastic::MaterialLayer> layers;
-    for (const LayerSpec& l : scene.material.layers) {
-      layers.push_back({l.z_min_m, l.z_max_m, {l.youngs_pa, l.poisson, l.stiffening}});
-    }
-    HC_ASSIGN_OR_RETURN(materials, hyperelastic::layered_materials(mesh, layers));
-    e_ref = scene.material.layers.front().youngs_pa;
-    nu_ref = scene.material.layers.front().poisson;
-  } else {
-    materials.push_back(
-        {scene.material.youngs_pa, scene.material.poisson, scene.material.stiffening});
-  }
+  HC_ASSIGN_OR_RETURN(std::vector<hyperelastic::NeoHookeanMaterial> materials,
+                      reference_materials(scene.material, mesh));
   HC_ASSIGN_OR_RETURN(hyperelastic::NeoHookeanModel model,
-                      hyperelastic::NeoHookeanModel::create(mesh, materials));
-  // The same penalty stiffness rule as the FEM contact (ContactOptions::penalty_scale times the
-  // mean diagonal of the small-strain stiffness), so both models see the same probe.
-  HC_ASSIGN_OR_RETURN(fem::CorotationalFem lin, fem::CorotationalFem::create(mesh, fixed));
-  lin.set_uniform_params(fem::lambda_alpha_from_youngs_poisson(e_ref, nu_ref));
-  lin.assemble();
-  const fem::SparseMatrix& k = lin.stiffness();
-  double diag = 0;
-  for (Eigen::Index c = 0; c < k.cols(); ++c) diag += k.valuePtr()[k.outerIndexPtr()[c + 1] - 1];
-  diag /= static_cast<double>(k.cols());
-  // Travel to first contact so that depth is measured from contact, as in the FEM path.
-  HC_ASSIGN_OR_RETURN(fem::ContactSolver cs, fem::ContactSolver::create(&lin, probe));
-  std::unique_ptr<fem::Probe> start = probe.clone();
-  start->advance(cs.contact_travel());
-  HC_ASSIGN_OR_RETURN(
-      std::unique_ptr<hyperelastic::RigidProbe> rp,
-      hyperelastic::make_fem_probe_contact(*start, fem::ContactOptions{}.penalty_scale * diag));
-  hyperelastic::Boundary boundary;
-  boundary.fixed_nodes = fixed;  // indent() adds the probe's contact itself (not here: twice = 2k)
-  hyperelastic::IndentOptions options;
+                      hyperelastic::NeoHookeanModel::create(mesh, std::move(materials)));
+  hyperelastic::ReferenceIndentationOptions options;
   options.steps = scene.steps;
-  options.force_control = scene.load.control == fem::LoadControl::kForce;
-  if (options.force_control) {
-    options.force_n = scene.load.value;
-  } else {
-    options.depth_m = scene.load.value;
-  }
-  Eigen::VectorXd x = model.rest_positions();
-  hyperelastic::IndentSummary summary;
-  HC_RETURN_IF_ERROR(hyperelastic::indent(model, boundary, *rp, options, &x, &summary));
-  if (!summary.usable) return failed_precondition("neo-Hookean model: " + summary.message);
+  HC_ASSIGN_OR_RETURN(
+      hyperelastic::IndentationResult ind,
+      hyperelastic::reference_indentation(model, fixed, probe, scene.load, options));
+  if (!ind.summary.usable)
+    return failed_precondition("neo-Hookean model: " + ind.summary.message);
   SimulationResult r;
   r.model = "neo_hookean";
-  r.force_n = summary.force_n;
-  r.depth_m = summary.depth_m;
-  r.max_displacement_m = summary.max_displacement_m;
-  for (const auto& s : summary.steps)
-    r.steps.push_back({s.depth_m, s.force_n, s.newton_iterations});
-  r.positions = Eigen::Map<const MatrixX3d>(x.data(), mesh.num_nodes(), 3);
+  r.force_n = ind.summary.force_n;
+  r.depth_m = ind.summary.depth_m;
+  r.max_displacement_m = ind.summary.max_displacement_m;
+  for (const auto& st : ind.summary.steps)
+    r.steps.push_back({st.depth_m, st.force_n, st.newton_iterations});
+  r.positions = std::move(ind.positions_m);
   return r;
 }
 
@@ -340,7 +258,8 @@ Result<SimulationResult> simulate(const Scene& scene, ProgressReporter* progress
                                   const MaterialLoader& loader) {
   const auto t0 = std::chrono::steady_clock::now();
   ProgressTask task(progress, "simulate", 3);
-  HC_ASSIGN_OR_RETURN(TetMesh mesh, build_specimen(scene.specimen));
+  MeshReport mesh_report;
+  HC_ASSIGN_OR_RETURN(TetMesh mesh, build_specimen(scene, &mesh_report));
   task.advance();
   HC_ASSIGN_OR_RETURN(std::vector<int> fixed, fixed_nodes(scene, mesh));
   HC_ASSIGN_OR_RETURN(std::unique_ptr<fem::Probe> probe, build_probe(scene.probe));
@@ -371,6 +290,7 @@ Result<SimulationResult> simulate(const Scene& scene, ProgressReporter* progress
     task.advance();
     fem::IncrementalOptions options;
     options.steps = scene.steps;
+    options.progress = progress;
     fem::IncrementalSummary summary;
     HC_RETURN_IF_ERROR(
         fem::run_incremental(&model, *material, *probe, scene.load, options, &summary));
@@ -386,6 +306,7 @@ Result<SimulationResult> simulate(const Scene& scene, ProgressReporter* progress
   if (!result.ok()) return result.status();
   task.advance();
   result->mesh = std::move(mesh);
+  result->mesh_report = mesh_report;
   result->time_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   return result;
 }

@@ -95,12 +95,22 @@ TEST(Pipeline, JointMaterialFitReproducesNoiseFreeExamples) {
   std::printf("joint fit: error %.3f %% of max displacement\n", 100 * ev->error_rel_max_disp);
   EXPECT_LT(ev->error_rel_max_disp, 0.005);
 
-  // Too large for the dense joint Jacobian: refused before any fitting.
+  // Too large for the dense joint Jacobian: refused before any fitting when the dense solver is
+  // asked for; the automatic choice takes the matrix-free path instead.
   options.joint.max_jacobian_bytes = 1e3;
+  options.parameters.solver = FitSolver::kDense;
   Result<Material> big = fit_heterogeneous(*samples, options);
   ASSERT_FALSE(big.ok());
   EXPECT_EQ(big.status().code(), StatusCode::kFailedPrecondition);
   EXPECT_NE(big.status().to_string().find("Jacobian"), std::string::npos);
+  options.parameters.solver = FitSolver::kMatrixFree;
+  HeterogeneousFitSummary free_summary;
+  Result<Material> free = fit_heterogeneous(*samples, options, &free_summary);
+  ASSERT_TRUE(free.ok()) << free.status().to_string();
+  EXPECT_TRUE(free_summary.joint.matrix_free);
+  Result<EvaluateSummary> free_ev = evaluate_material(RbfMaterial(*free), *samples, {});
+  ASSERT_TRUE(free_ev.ok());
+  EXPECT_LT(free_ev->error_rel_max_disp, 0.005);
 }
 
 }  // namespace

@@ -217,7 +217,7 @@ TEST(Simulate, BadScenesFailClearly) {
   auto r = simulate(*parse(j));
   ASSERT_FALSE(r.ok());
   EXPECT_EQ(r.status().code(), StatusCode::kInvalidArgument);
-  EXPECT_NE(r.status().message().find("does not reach"), std::string::npos);
+  EXPECT_NE(r.status().message().find("misses the specimen"), std::string::npos);
   j = base();
   j["fixed"] = {100000};
   r = simulate(*parse(j));

@@ -159,6 +159,11 @@ class CorotationalFem {
   // Adds a 3x3 block to the diagonal block of a FREE node in the assembled K (contact penalties);
   // the block must be symmetric. No-op for fixed nodes. Valid until the next assemble().
   void add_to_node_block(Eigen::Index node, const Eigen::Matrix3d& block);
+  // Adds `block` to K's block (node a, node b) of element e's local nodes a, b (0..3) and its
+  // transpose to (b, a), i.e. the symmetric coupling of two nodes of one element (contact points
+  // on a boundary triangle). a == b adds to the node's own block (which must then be symmetric).
+  // No-op when either node is fixed. Valid until the next assemble().
+  void add_to_element_block(Eigen::Index e, int a, int b, const Eigen::Matrix3d& block);
   // Right-hand side without external forces (length num_free_dofs()).
   const Eigen::VectorXd& rest_rhs() const;
 

@@ -7,6 +7,7 @@
 #include <Eigen/Core>
 #include <vector>
 
+#include "common/progress.h"
 #include "common/status.h"
 #include "processing/fem/contact.h"
 #include "processing/fem/corotational.h"
@@ -21,6 +22,8 @@ struct IncrementalOptions {
   // Also update parameters inside each step's equilibrium iterations (self-consistent p(eps) at the
   // end of every step) rather than only at its start (the thesis's explicit incremental scheme).
   bool update_within_step = false;
+  // Reports the load steps of probe loading (optional).
+  ProgressReporter* progress = nullptr;
 
   Status validate() const;
 };

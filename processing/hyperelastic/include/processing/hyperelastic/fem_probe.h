@@ -4,8 +4,10 @@
 #pragma once
 
 #include <memory>
+#include <vector>
 
 #include "common/status.h"
+#include "processing/fem/contact_surface.h"
 #include "processing/fem/probe.h"
 #include "processing/hyperelastic/neo_hookean.h"
 
@@ -17,5 +19,15 @@ namespace hc::hyperelastic {
 // (fem's probes give no curvature). Fails on a non-positive or non-finite stiffness.
 Result<std::unique_ptr<RigidProbe>> make_fem_probe_contact(const fem::Probe& probe,
                                                            double stiffness_n_per_m);
+
+// The same probe against the contact points of a tet mesh's boundary (fem/contact_surface.h: its
+// nodes and, on faces coarser than the probe, points on the faces, so that the probe cannot pass
+// between nodes), the contact rule of processing/fem's ContactSolver: point p at signed distance
+// s < 0 gets k_p/2 s² (k_p = stiffness[p], N/m), its force reaches the face's nodes by the
+// point's weights; Gauss–Newton Hessian k_p (w wᵀ ⊗ n nᵀ). Fails when `stiffness` does not have
+// one entry per point or an entry is negative or not finite.
+Result<std::unique_ptr<RigidProbe>> make_fem_surface_contact(const fem::Probe& probe,
+                                                             const fem::ContactSurface& surface,
+                                                             std::vector<double> stiffness);
 
 }  // namespace hc::hyperelastic

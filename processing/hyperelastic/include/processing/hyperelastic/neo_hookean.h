@@ -76,9 +76,17 @@ class ContactPotential {
  public:
   virtual ~ContactPotential() = default;
   // Penalty energy (J) of one node at `p` (m); adds its gradient (N) to *grad and its 3×3 Hessian
-  // (N/m) to *hess when they are non-null. Zero when the node is outside the obstacle.
+  // (N/m) to *hess when they are non-null. Zero when the node is outside the obstacle. The default
+  // is no contact (for potentials that override energy() instead).
   virtual double node_energy(const Eigen::Vector3d& p, Eigen::Vector3d* grad,
-                             Eigen::Matrix3d* hess) const = 0;
+                             Eigen::Matrix3d* hess) const;
+  // Penalty energy (J) of the configuration x (3N): adds its gradient (N) to *grad (3N) and the
+  // entries of its Hessian (N/m, row/column = DOF) to *hessian when non-null; with `project` the
+  // Hessian is made positive semi-definite. The default sums node_energy over the nodes (each
+  // node's 3×3 block projected on its own); potentials whose contact points couple several nodes
+  // (points on boundary triangles, fem_probe.h) override it.
+  virtual double energy(const Eigen::VectorXd& x, Eigen::VectorXd* grad,
+                        std::vector<Eigen::Triplet<double>>* hessian, bool project) const;
 };
 
 // A rigid probe moving along a unit `direction` (its axis) from a start pose; `depth_m` is how far
@@ -208,6 +216,7 @@ struct IndentOptions {
   double force_n = 1.0;                    // final probe force (force control), > 0
   double force_relative_tolerance = 1e-4;  // force control: |F − target| ≤ tol·target
   int max_force_iterations = 30;           // force control: secant steps per load step
+  bool record_positions = false;           // keep x after every step (IndentSummary::positions)
   SolveOptions solve;
 };
 Status validate(const IndentOptions& options);
@@ -226,6 +235,7 @@ struct IndentSummary {
   double force_n = 0;
   double max_displacement_m = 0;
   double time_s = 0;
+  std::vector<Eigen::VectorXd> positions;  // with record_positions: x after each finished step
 };
 
 // Pushes `probe` into the model in `steps` increments (each warm-started from the previous
@@ -236,5 +246,7 @@ Status indent(const NeoHookeanModel& model, const Boundary& boundary, RigidProbe
 
 // Total contact force (N) that obstacle `c` exerts on the nodes at x (3-vector, sum over nodes).
 Eigen::Vector3d contact_force(const ContactPotential& c, const Eigen::VectorXd& x);
+// The force on each node, #N by 3 (N): −∂(contact energy)/∂x.
+MatrixX3d contact_forces(const ContactPotential& c, const Eigen::VectorXd& x);
 
 }  // namespace hc::hyperelastic

@@ -75,6 +75,16 @@ class ExampleProblem {
   // elements together: column pairs are then summed per group (k groups → 2k columns).
   Status jacobian(Eigen::MatrixXd* j, const std::vector<int>* groups = nullptr,
                   int num_groups = 0) const;
+  // Matrix-free products with the same Jacobian (thesis Appendix A), reusing the factorisation of
+  // the last simulate(): J v by one solve (v: 2·num_elements(), (λ, α) per element; result
+  // num_measurements()), Jᵀ w by one adjoint solve (K is symmetric), and Jᵀ W for the columns of W
+  // by one multi-right-hand-side solve. No dense Jacobian is formed.
+  Status apply_jacobian(const Eigen::VectorXd& v, Eigen::VectorXd* jv) const;
+  Status apply_jacobian_transpose(const Eigen::VectorXd& w, Eigen::VectorXd* jtw) const;
+  Status apply_jacobian_transpose(const Eigen::MatrixXd& w, Eigen::MatrixXd* jtw) const;
+  // Free dofs of the model and entries of its Cholesky factor (for choosing dense vs matrix-free).
+  Eigen::Index num_free_dofs() const;
+  double factor_entries() const;
   // Re-freezes the rotations R_e at the last simulate()'s positions (the model's own
   // configuration instead of the measured one).
   void update_rotations();
@@ -93,6 +103,14 @@ class ExampleProblem {
 
 enum class FitBackend { kOwnLm, kCeres };
 
+// How the own LM solves its linear systems. kDense forms the Jacobian (one solve per measurement
+// or per parameter, whichever is fewer) and factorises JᵀJ + γLᵀL; kMatrixFree never forms it:
+// preconditioned CG on the normal equations, each CG iteration one solve for J v and one adjoint
+// solve for Jᵀ w with the model's factorisation (memory O(parameters + measurements), time per
+// iteration O(factor size)); kAuto picks the one whose estimated cost is lower (dense for small
+// problems) within max_dense_bytes.
+enum class FitSolver { kAuto, kDense, kMatrixFree };
+
 struct ParameterFitOptions {
   double regularization = 1e-3;  // γ (dimensionless, see above)
   int max_iterations = 40;
@@ -107,10 +125,18 @@ struct ParameterFitOptions {
   // varies by 20× for the same E and the strain-space RBF of (λ, α) then mixes incompatible
   // samples. 0 turns it off.
   double poisson_prior = 0;
-  // Own LM: dense normal equations up to this many parameters, matrix-free preconditioned CG above.
+  // Own LM: dense normal equations up to this many parameters, matrix-free preconditioned CG above
+  // (the Ceres backend's choice between DENSE_NORMAL_CHOLESKY and CGNR).
   int dense_parameter_limit = 2500;
+  FitSolver solver = FitSolver::kAuto;
+  // Dense path: largest memory for J, JᵀJ and its factor (bytes, per example fitted at once).
+  double max_dense_bytes = 1e9;
+  // Matrix-free path: CG iterations per LM step; the tightest relative CG tolerance (steps are
+  // solved loosely far from the minimum, down to this near it); columns of the Gaussian sketch
+  // that estimates JᵀJ's diagonal blocks for the preconditioner.
   int cg_max_iterations = 400;
   double cg_relative_tolerance = 1e-8;
+  int sketch_size = 16;
   FitBackend backend = FitBackend::kOwnLm;
 
   Status validate() const;
@@ -125,6 +151,8 @@ struct ParameterFitSummary {
   double rms_error_m = 0;  // over measured coordinates (per node: ‖x − x̄‖ RMS)
   double max_error_m = 0;  // largest node distance
   double time_s = 0;
+  bool matrix_free = false;  // which path the own LM took (FitSolver)
+  long cg_iterations = 0;    // matrix-free: CG iterations over all LM steps
 };
 
 // Fits one (λ, α) shared by all elements (the "average-fit linear co-rotational model") to the
@@ -203,11 +231,14 @@ struct JointRefinementOptions {
   // 1e-5 halves the noise study's iterations (46 -> 18 at 10 %) for < 0.02 % change in its error.
   double function_tolerance = 1e-5;
   int passes = 2;  // (strains under the current material, LM) rounds
-  // The LM stores the stacked Jacobian densely (all measurements × parameters_per_tet() T, 8 bytes
-  // each) and keeps
-  // every example's FEM factorisation: fine for the noise study's size (2,700 × 864), not for the
-  // thesis-scale foam (48 × ~4,000 × 5,400: 8 GB). Larger problems fail with kFailedPrecondition.
+  // The dense path (ParameterFitOptions::solver) stores the stacked Jacobian (all measurements ×
+  // parameters_per_tet() T, 8 bytes each): fine for the noise study's size (2,700 × 864), not for
+  // the thesis-scale foam (48 × ~4,000 × 5,400: 8 GB). A dense fit larger than this fails with
+  // kFailedPrecondition; kAuto takes the matrix-free path (which keeps only every example's FEM
+  // factorisation) well before.
   double max_jacobian_bytes = 2e9;
+  // Reports each pass's LM iterations (optional).
+  ProgressReporter* progress = nullptr;
   // (ln λ0, logit ν, k[, m]): 4 with the quadratic-like stiffening, else 3.
   int parameters_per_tet() const { return quadratic_stiffening ? 4 : 3; }
   Status validate() const;
@@ -260,6 +291,7 @@ Result<Material> fit_heterogeneous(const Samples& samples, const HeterogeneousFi
 
 struct EvaluateOptions {
   int steps = 8;  // load increments (processing/fem incremental loading, nodal forces)
+  int threads = 0;  // examples simulated in parallel (0: TBB's default)
   ProgressReporter* progress = nullptr;
 };
 

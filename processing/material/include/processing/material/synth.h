@@ -53,6 +53,9 @@ struct SynthOptions {
   double margin_fraction = 0.15;  // keep probe centres this fraction of the size off the edges
   bool surface_only = false;      // true: only boundary nodes are visible (like markers)
   std::vector<int> fixed_nodes;   // sorted, unique
+  // Examples simulated in parallel (0: TBB's default); the simulator must then be thread-safe
+  // (the reference simulators are: each call builds its own solver state).
+  int threads = 0;
   ProgressReporter* progress = nullptr;
 
   Status validate() const;

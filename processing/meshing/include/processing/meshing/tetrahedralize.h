@@ -16,6 +16,7 @@
 #include "common/mesh.h"
 #include "common/status.h"
 #include "common/tet_mesh.h"
+#include "processing/meshing/size_field.h"
 
 namespace hc::meshing {
 
@@ -46,6 +47,13 @@ struct TetrahedralizeOptions {
   // when they are used up, so this bounds the element count (and memory) whatever q and a ask;
   // a result with nodes - input_vertices == max_steiner_points did not meet them.
   long max_steiner_points = 0;
+
+  // Mesh sizing function (TetGen 'm' with a background mesh, size_field.h): the desired edge length
+  // near a point (input units), e.g. fine where a probe will touch and coarse far from it. TetGen
+  // splits the boundary and the volume until edges are about this long (measured on boxes with a
+  // uniform size: mean edge 1.3 x the size, boundary edges 1.2 x). Empty: no sizing function.
+  // Must return finite values > 0 over the input's bounding box.
+  EdgeSizeFunction edge_size;
 
   // Fails with kInvalidArgument explaining the bad value.
   Status validate() const;

@@ -14,6 +14,9 @@
 //    "load": {"depth_m": d} | {"force_n": f},
 //    "steps": n}                                                         optional, default 10
 // Relative paths are resolved against the scene file's folder. Units are SI throughout.
+// Without "cells" or "max_tet_volume_m3" the specimen is meshed for the scene's contact: TetGen
+// with a size field graded from the probe's expected contact patch to a coarse far field
+// (contact_meshing.h); the mesh keys, when given, win.
 #pragma once
 
 #include <Eigen/Core>
@@ -31,6 +34,7 @@
 #include "processing/fem/contact.h"
 #include "processing/fem/incremental.h"
 #include "processing/fem/material_model.h"
+#include "processing/fem/probe.h"
 
 namespace hc::scene {
 
@@ -90,8 +94,36 @@ Result<Scene> parse_scene(std::string_view text, std::string_view name,
                           const std::filesystem::path& base_dir);
 Result<Scene> read_scene(const std::filesystem::path& path);
 
-// The specimen's tet mesh (box or surface via processing/meshing).
+// The specimen's tet mesh (box or surface via processing/meshing) without a contact in view: the
+// mesh keys as given, TetGen's quality mesh without a size bound otherwise.
 Result<TetMesh> build_specimen(const SpecimenSpec& spec);
+
+// The scene's probe at its start pose (a mesh probe's file is read and scaled to metres).
+Result<std::unique_ptr<fem::Probe>> build_probe(const ProbeSpec& probe);
+
+// How a scene's specimen was meshed (`simulate --json` reports it).
+struct MeshReport {
+  std::string method;  // "structured" (cells), "tetgen" (max_tet_volume_m3), "contact_adaptive"
+  long nodes = 0;
+  long tets = 0;
+  double min_edge_m = 0;
+  double max_edge_m = 0;
+  // contact_adaptive: the expected patch and the size field graded from it.
+  Eigen::Vector3d focus_m = Eigen::Vector3d::Zero();
+  double patch_radius_m = 0;
+  double fine_size_m = 0;
+  double coarse_size_m = 0;
+  double growth = 0;
+  double time_s = 0;
+};
+
+// The scene's specimen mesh: its mesh keys when given, else graded for the scene's probe and load
+// (contact_meshing.h).
+Result<TetMesh> build_specimen(const Scene& scene, MeshReport* report = nullptr);
+
+// The nodes the scene holds fixed on `mesh`: "bottom" (the nodes at the lowest z) or the listed
+// ones (invalid_argument when one is out of range). Sorted, unique.
+Result<std::vector<int>> fixed_nodes(const Scene& scene, const TetMesh& mesh);
 
 struct SimulationResult {
   std::string model;  // "corotational_linear", "corotational_data_driven", "neo_hookean"
@@ -100,6 +132,7 @@ struct SimulationResult {
   double max_displacement_m = 0;
   std::vector<fem::LoadStep> steps;
   TetMesh mesh;
+  MeshReport mesh_report;
   MatrixX3d positions;  // deformed
   double time_s = 0;
 };

@@ -1,0 +1,332 @@
+#include "lm.h"
+
+#include <Eigen/Cholesky>
+#include <Eigen/LU>
+#include <algorithm>
+#include <cmath>
+#include <random>
+
+namespace hc::material::detail {
+
+namespace {
+
+// The step of one LM attempt and the model's predicted cost decrease.
+struct Step {
+  Eigen::VectorXd delta;
+  double predicted = 0;
+  int cg_iterations = 0;
+  bool ok = false;
+};
+
+// Everything an iteration needs at the current point, for either path.
+class Linearization {
+ public:
+  virtual ~Linearization() = default;
+  // Solves (JᵀJ + RᵀR + μ D) δ = −g.
+  virtual Status solve(double mu, Step* step) = 0;
+  const Eigen::VectorXd& gradient() const { return g_; }
+  const Eigen::VectorXd& scaling() const { return diag_; }
+
+ protected:
+  Eigen::VectorXd g_;     // Jᵀ r + Rᵀ (R q − b)
+  Eigen::VectorXd diag_;  // Marquardt scaling D: diag(JᵀJ + RᵀR), floored
+};
+
+void floor_diagonal(Eigen::VectorXd* diag) {
+  const double floor = 1e-12 * std::max(diag->maxCoeff(), 1e-300);
+  *diag = diag->cwiseMax(floor);
+}
+
+class DenseLinearization final : public Linearization {
+ public:
+  DenseLinearization(Eigen::MatrixXd j, const Eigen::VectorXd& r, const Eigen::SparseMatrix<double>& rtr,
+                     const Eigen::VectorXd& reg_gradient) {
+    const Eigen::Index n = j.cols();
+    g_ = j.transpose() * r;
+    if (rtr.rows() > 0) g_ += reg_gradient;
+    diag_ = j.colwise().squaredNorm().transpose();
+    if (rtr.rows() > 0) diag_ += rtr.diagonal();
+    floor_diagonal(&diag_);
+    a_ = Eigen::MatrixXd::Zero(n, n);
+    a_.selfadjointView<Eigen::Lower>().rankUpdate(j.transpose());
+    a_.triangularView<Eigen::Upper>() = a_.transpose();
+    if (rtr.rows() > 0) a_ += Eigen::MatrixXd(rtr);
+  }
+  Status solve(double mu, Step* step) override {
+    Eigen::MatrixXd am = a_;
+    am.diagonal() += mu * diag_;
+    Eigen::LLT<Eigen::MatrixXd> llt(am);
+    step->ok = llt.info() == Eigen::Success;
+    if (!step->ok) return {};
+    step->delta = llt.solve(-g_);
+    step->predicted = -step->delta.dot(g_) + mu * step->delta.dot(diag_.cwiseProduct(step->delta));
+    return {};
+  }
+
+ private:
+  Eigen::MatrixXd a_;  // JᵀJ + RᵀR
+};
+
+// Matrix-free: preconditioned CG on the normal equations, J v and Jᵀ w by the operator. The
+// preconditioner inverts the block diagonal of JᵀJ + RᵀR + μ D, with JᵀJ's blocks estimated from
+// a Gaussian sketch: for W with k columns of N(0, 1/k), E[Jᵀ W Wᵀ J] = JᵀJ, so the blocks of
+// (Jᵀ W)(Jᵀ W)ᵀ estimate those of JᵀJ from k adjoint products (one multi-right-hand-side solve).
+class MatrixFreeLinearization final : public Linearization {
+ public:
+  static Result<std::unique_ptr<MatrixFreeLinearization>> create(
+      std::unique_ptr<JacobianOperator> op, const Eigen::VectorXd& r,
+      const Eigen::SparseMatrix<double>& rtr, const Eigen::VectorXd& reg_gradient, int block,
+      const LmSettings& settings, std::mt19937_64* rng, double g0_norm) {
+    auto l = std::unique_ptr<MatrixFreeLinearization>(new MatrixFreeLinearization());
+    l->op_ = std::move(op);
+    l->rtr_ = &rtr;
+    l->block_ = block;
+    l->settings_ = settings;
+    Eigen::MatrixXd jtr;
+    HC_RETURN_IF_ERROR(l->op_->apply_transpose(r, &jtr));
+    l->g_ = jtr.col(0);
+    if (rtr.rows() > 0) l->g_ += reg_gradient;
+    const Eigen::Index n = l->g_.size();
+    const int k = std::max(1, settings.sketch_size);
+    std::normal_distribution<double> normal(0.0, 1.0 / std::sqrt(static_cast<double>(k)));
+    Eigen::MatrixXd w(r.size(), k);
+    for (Eigen::Index c = 0; c < k; ++c)
+      for (Eigen::Index i = 0; i < r.size(); ++i) w(i, c) = normal(*rng);
+    Eigen::MatrixXd y;
+    HC_RETURN_IF_ERROR(l->op_->apply_transpose(w, &y));
+    const Eigen::Index blocks = n / block;
+    l->jtj_blocks_.resize(n, block);
+    for (Eigen::Index e = 0; e < blocks; ++e) {
+      const auto ye = y.middleRows(e * block, block);
+      l->jtj_blocks_.middleRows(e * block, block) = ye * ye.transpose();
+    }
+    if (rtr.rows() > 0)
+      for (Eigen::Index e = 0; e < blocks; ++e)
+        for (int a = 0; a < block; ++a)
+          for (int b = 0; b < block; ++b)
+            l->jtj_blocks_(e * block + a, b) += rtr.coeff(e * block + a, e * block + b);
+    l->diag_.resize(n);
+    for (Eigen::Index i = 0; i < n; ++i) l->diag_(i) = l->jtj_blocks_(i, i % block);
+    floor_diagonal(&l->diag_);
+    // Inexact Gauss–Newton: a loose CG tolerance while far from the minimum, tightening as the
+    // gradient falls (Eisenstat–Walker's choice 2 in spirit: η = √(‖g‖/‖g₀‖), at most 0.1).
+    const double ratio = g0_norm > 0 ? l->g_.norm() / g0_norm : 1.0;
+    l->eta_ = std::clamp(std::sqrt(ratio), settings.cg_relative_tolerance, 0.1);
+    return l;
+  }
+
+  Status solve(double mu, Step* step) override {
+    const Eigen::Index n = g_.size();
+    const Eigen::Index blocks = n / block_;
+    // Block-Jacobi preconditioner (inverse blocks).
+    std::vector<Eigen::MatrixXd> inv(static_cast<std::size_t>(blocks));
+    for (Eigen::Index e = 0; e < blocks; ++e) {
+      Eigen::MatrixXd m = jtj_blocks_.middleRows(e * block_, block_);
+      for (int a = 0; a < block_; ++a) m(a, a) += mu * diag_(e * block_ + a);
+      Eigen::LLT<Eigen::MatrixXd> llt(m);
+      inv[static_cast<std::size_t>(e)] =
+          llt.info() == Eigen::Success
+              ? Eigen::MatrixXd(llt.solve(Eigen::MatrixXd::Identity(block_, block_)))
+              : Eigen::MatrixXd(m.diagonal().cwiseMax(1e-300).cwiseInverse().asDiagonal());
+    }
+    const auto precondition = [&](const Eigen::VectorXd& v) {
+      Eigen::VectorXd out(n);
+      for (Eigen::Index e = 0; e < blocks; ++e)
+        out.segment(e * block_, block_) =
+            inv[static_cast<std::size_t>(e)] * v.segment(e * block_, block_);
+      return out;
+    };
+    Eigen::VectorXd jv, jtjv;
+    const auto normal = [&](const Eigen::VectorXd& v, Eigen::VectorXd* out) -> Status {
+      HC_RETURN_IF_ERROR(op_->apply(v, &jv));
+      Eigen::MatrixXd t;
+      HC_RETURN_IF_ERROR(op_->apply_transpose(jv, &t));
+      *out = t.col(0) + mu * diag_.cwiseProduct(v);
+      if (rtr_->rows() > 0) *out += *rtr_ * v;
+      return {};
+    };
+    Eigen::VectorXd x = Eigen::VectorXd::Zero(n), res = -g_;
+    Eigen::VectorXd z = precondition(res), p = z, ap;
+    double rz = res.dot(z);
+    const double stop = eta_ * g_.norm();
+    int it = 0;
+    for (; it < settings_.cg_max_iterations && res.norm() > stop; ++it) {
+      HC_RETURN_IF_ERROR(normal(p, &ap));
+      const double pap = p.dot(ap);
+      if (!(pap > 0)) break;  // numerically singular direction: keep what we have
+      const double alpha = rz / pap;
+      x += alpha * p;
+      res -= alpha * ap;
+      z = precondition(res);
+      const double rz_new = res.dot(z);
+      p = z + (rz_new / rz) * p;
+      rz = rz_new;
+    }
+    step->cg_iterations = it;
+    step->ok = x.allFinite() && x.squaredNorm() > 0;
+    if (!step->ok) return {};
+    step->delta = x;
+    // The model's decrease −(2 gᵀδ + δᵀ (JᵀJ + RᵀR) δ), exact also for an inexact CG solution.
+    HC_RETURN_IF_ERROR(op_->apply(x, &jv));
+    double quad = jv.squaredNorm();
+    if (rtr_->rows() > 0) quad += x.dot(*rtr_ * x);
+    step->predicted = -(2 * g_.dot(x) + quad);
+    return {};
+  }
+
+ private:
+  MatrixFreeLinearization() = default;
+  std::unique_ptr<JacobianOperator> op_;
+  const Eigen::SparseMatrix<double>* rtr_ = nullptr;
+  int block_ = 1;
+  LmSettings settings_;
+  Eigen::MatrixXd jtj_blocks_;  // n × block: the diagonal blocks of JᵀJ + RᵀR
+  double eta_ = 0.1;
+};
+
+}  // namespace
+
+LmSettings lm_settings(const ParameterFitOptions& options) {
+  LmSettings s;
+  s.max_iterations = options.max_iterations;
+  s.function_tolerance = options.function_tolerance;
+  s.parameter_tolerance = options.parameter_tolerance;
+  s.cg_max_iterations = options.cg_max_iterations;
+  s.cg_relative_tolerance = options.cg_relative_tolerance;
+  s.sketch_size = options.sketch_size;
+  return s;
+}
+
+bool prefer_dense(double m, double n, double factor_entries, double examples,
+                  const ParameterFitOptions& options) {
+  if (options.solver == FitSolver::kDense) return true;
+  if (options.solver == FitSolver::kMatrixFree) return false;
+  // Per LM iteration, in flops: dense forms J (min(m, n) solves per example, ~4 flops per factor
+  // entry each), JᵀJ (m n²) and factorises it (n³/3, ~1.5 attempts); matrix-free needs the sketch,
+  // the gradient and ~2 solves per CG iteration (~60 observed) per example.
+  const double solve = 4 * factor_entries;
+  const double dense = examples * std::min(m / examples, n) * solve + m * n * n + 0.5 * n * n * n;
+  const double free = examples * solve * (options.sketch_size + 2 + 2 * 60.0);
+  const double dense_bytes = 8 * (m * n + 2 * n * n);
+  return dense < free && dense_bytes <= options.max_dense_bytes;
+}
+
+void error_stats(const Eigen::VectorXd& r_m, double* rms, double* max) {
+  const Eigen::Index nodes = r_m.size() / 3;
+  double sum = 0, mx = 0;
+  for (Eigen::Index i = 0; i < nodes; ++i) {
+    const double d = r_m.segment<3>(3 * i).norm();
+    sum += d * d;
+    mx = std::max(mx, d);
+  }
+  *rms = nodes ? std::sqrt(sum / static_cast<double>(nodes)) : 0.0;
+  *max = mx;
+}
+
+Status run_lm(const LmProblem& problem, const LmSettings& settings, Eigen::VectorXd* q,
+              ParameterFitSummary* summary) {
+  const bool has_reg = problem.reg.rows() > 0;
+  const Eigen::SparseMatrix<double>& reg = problem.reg;
+  Eigen::SparseMatrix<double> rtr;
+  if (has_reg) rtr = reg.transpose() * reg;
+  const bool has_target = has_reg && problem.reg_target.size() == problem.reg.rows();
+  const auto reg_residual = [&](const Eigen::VectorXd& v) -> Eigen::VectorXd {
+    Eigen::VectorXd out = reg * v;
+    if (has_target) out -= problem.reg_target;
+    return out;
+  };
+  const auto reg_cost = [&](const Eigen::VectorXd& v) {
+    return has_reg ? reg_residual(v).squaredNorm() : 0.0;
+  };
+  std::mt19937_64 rng(settings.seed);
+  ProgressTask task(problem.progress, problem.progress_task,
+                    static_cast<std::uint64_t>(settings.max_iterations));
+
+  Eigen::VectorXd r;
+  HC_RETURN_IF_ERROR(problem.residual(*q, &r));
+  double cost = r.squaredNorm() + reg_cost(*q);
+  summary->initial_cost = cost;
+  double mu = 1e-3, nu = 2;
+  bool at_current = true;
+  double g0_norm = 0;
+  summary->message = "max iterations";
+  summary->cg_iterations = 0;
+  int it = 0;
+  bool done = false;
+  for (; it < settings.max_iterations && !done; ++it) {
+    if (!at_current) HC_RETURN_IF_ERROR(problem.residual(*q, &r));
+    at_current = true;
+    const Eigen::VectorXd reg_gradient =
+        has_reg ? Eigen::VectorXd(reg.transpose() * reg_residual(*q)) : Eigen::VectorXd();
+    std::unique_ptr<Linearization> lin;
+    if (problem.matrix_free) {
+      HC_ASSIGN_OR_RETURN(std::unique_ptr<JacobianOperator> op, problem.jacobian_operator(*q));
+      HC_ASSIGN_OR_RETURN(lin, MatrixFreeLinearization::create(std::move(op), r, rtr, reg_gradient,
+                                                               problem.block, settings, &rng,
+                                                               g0_norm));
+    } else {
+      Eigen::MatrixXd j;
+      HC_RETURN_IF_ERROR(problem.jacobian(*q, &j));
+      lin = std::make_unique<DenseLinearization>(std::move(j), r, rtr, reg_gradient);
+    }
+    if (it == 0) g0_norm = lin->gradient().norm();
+    bool accepted = false;
+    for (int attempt = 0; attempt < 30 && !accepted; ++attempt) {
+      // A rejected trial left the FEM models at the trial point; the operator solves with the
+      // factorisation at q.
+      if (problem.matrix_free && !at_current) {
+        HC_RETURN_IF_ERROR(problem.residual(*q, &r));
+        at_current = true;
+      }
+      Step step;
+      HC_RETURN_IF_ERROR(lin->solve(mu, &step));
+      summary->cg_iterations += step.cg_iterations;
+      if (!step.ok) {
+        mu *= nu;
+        nu *= 2;
+        continue;
+      }
+      const Eigen::VectorXd trial = *q + step.delta;
+      Eigen::VectorXd r_trial;
+      const Status st = problem.residual(trial, &r_trial);
+      at_current = false;
+      const double cost_trial = st.ok() ? r_trial.squaredNorm() + reg_cost(trial) : INFINITY;
+      const double rho = (cost - cost_trial) / std::max(step.predicted, 1e-300);
+      if (st.ok() && cost_trial < cost) {
+        const double decrease = (cost - cost_trial) / std::max(cost, 1e-300);
+        const bool small_step = step.delta.norm() <= settings.parameter_tolerance *
+                                                         (q->norm() + settings.parameter_tolerance);
+        *q = trial;
+        r = r_trial;
+        cost = cost_trial;
+        at_current = true;
+        accepted = true;
+        mu *= std::max(1.0 / 3.0, 1.0 - std::pow(2 * rho - 1, 3));
+        nu = 2;
+        if (decrease < settings.function_tolerance) {
+          summary->message = "function tolerance";
+          done = true;
+        } else if (small_step) {
+          summary->message = "parameter tolerance";
+          done = true;
+        }
+      } else {
+        mu *= nu;
+        nu *= 2;
+      }
+    }
+    task.advance();
+    if (!accepted) {
+      summary->message = "no decrease found (converged to machine precision)";
+      break;
+    }
+  }
+  summary->iterations = it;
+  if (!at_current) HC_RETURN_IF_ERROR(problem.residual(*q, &r));
+  summary->final_cost = cost;
+  summary->usable = std::isfinite(cost);
+  summary->matrix_free = problem.matrix_free;
+  return {};
+}
+
+}  // namespace hc::material::detail

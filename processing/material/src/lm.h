@@ -1,0 +1,101 @@
+// Levenberg–Marquardt on a scaled least-squares problem  ‖r(q)‖² + ‖R q − b‖²  (R sparse), with
+// the Jacobian of r either dense or as an operator (matrix-free: J v and Jᵀ w by one FEM solve
+// each). Internal to processing/material: fit.cpp (per-example and homogeneous fits) and
+// joint_fit.cpp (the joint material fit) use it.
+#pragma once
+
+#include <Eigen/Core>
+#include <algorithm>
+#include <cmath>
+#include <Eigen/SparseCore>
+#include <cstdint>
+#include <functional>
+#include <memory>
+#include <string>
+
+#include "common/progress.h"
+#include "common/status.h"
+#include "processing/material/fit.h"
+
+namespace hc::material::detail {
+
+// The fits' parameterisation of physical validity (fit.h): q = (ln λ, logit(ν/ν_max)).
+inline double sigmoid(double x) { return 1.0 / (1.0 + std::exp(-x)); }
+inline double logit(double y) { return std::log(y / (1.0 - y)); }
+
+// q = (ln λ, logit(ν/ν_max)) per element ↔ (λ, α).
+struct Reparam {
+  double max_poisson;
+  LambdaAlpha to_params(double q0, double q1) const {
+    const double lambda = std::exp(q0);
+    return {lambda, lambda * max_poisson * sigmoid(q1)};
+  }
+  Eigen::Vector2d to_q(const LambdaAlpha& p) const {
+    const double lambda = std::max(p.lambda, 1e-300);
+    double nu = p.alpha / lambda;
+    nu = std::clamp(nu / max_poisson, 1e-6, 1 - 1e-6);
+    return {std::log(lambda), logit(nu)};
+  }
+  // ∂(λ, α)/∂(q0, q1) applied to the (λ, α) columns of `j` in place (columns 2e, 2e+1 per block e).
+  void chain(double q0, double q1, Eigen::Ref<Eigen::MatrixXd> j2) const {
+    const double lambda = std::exp(q0);
+    const double s = sigmoid(q1);
+    const double alpha = lambda * max_poisson * s;
+    const Eigen::VectorXd dl = j2.col(0);
+    const Eigen::VectorXd da = j2.col(1);
+    j2.col(0) = lambda * dl + alpha * da;
+    j2.col(1) = lambda * max_poisson * s * (1 - s) * da;
+  }
+};
+
+// J at the LM's current point (valid until the next residual evaluation).
+class JacobianOperator {
+ public:
+  virtual ~JacobianOperator() = default;
+  // out = J v (rows), v has cols entries.
+  virtual Status apply(const Eigen::VectorXd& v, Eigen::VectorXd* out) const = 0;
+  // out = Jᵀ W for the columns of W (rows × k) → cols × k.
+  virtual Status apply_transpose(const Eigen::MatrixXd& w, Eigen::MatrixXd* out) const = 0;
+};
+
+struct LmProblem {
+  std::function<Status(const Eigen::VectorXd& q, Eigen::VectorXd* r)> residual;
+  // Dense Jacobian at the last residual() point.
+  std::function<Status(const Eigen::VectorXd& q, Eigen::MatrixXd* j)> jacobian;
+  // Matrix-free Jacobian at the last residual() point (used when matrix_free is set).
+  std::function<Result<std::unique_ptr<JacobianOperator>>(const Eigen::VectorXd& q)> jacobian_operator;
+  bool matrix_free = false;
+  Eigen::Index rows = 0;  // residual length (needed by the matrix-free path's sketch)
+  // Parameters per element: the matrix-free preconditioner inverts these diagonal blocks.
+  int block = 1;
+  Eigen::SparseMatrix<double> reg;  // R (rows × n) already multiplied by sqrt(γ); may be 0×0
+  Eigen::VectorXd reg_target;       // b: the regulariser is ‖R q − b‖² (empty: b = 0)
+  ProgressReporter* progress = nullptr;  // one unit per LM iteration
+  std::string progress_task = "LM iterations";
+};
+
+struct LmSettings {
+  int max_iterations = 40;
+  double function_tolerance = 1e-7;
+  double parameter_tolerance = 1e-8;
+  int cg_max_iterations = 400;
+  double cg_relative_tolerance = 1e-8;
+  int sketch_size = 16;
+  std::uint64_t seed = 1;
+};
+LmSettings lm_settings(const ParameterFitOptions& options);
+
+// Runs LM from *q; summary gets iterations, costs, message, usable (and cg_iterations).
+Status run_lm(const LmProblem& problem, const LmSettings& settings, Eigen::VectorXd* q,
+              ParameterFitSummary* summary);
+
+// Whether the dense path is expected to be faster (and fits in memory) for a problem with m
+// residuals, n parameters and Cholesky factors of `factor_entries` entries over `examples` FEM
+// models (see fit.h, FitSolver::kAuto).
+bool prefer_dense(double m, double n, double factor_entries, double examples,
+                  const ParameterFitOptions& options);
+
+// RMS and largest node distance of residuals in metres (3 per node).
+void error_stats(const Eigen::VectorXd& r_m, double* rms, double* max);
+
+}  // namespace hc::material::detail
