@@ -267,7 +267,7 @@ Result<std::vector<CameraObservations>> detect_in_session(const std::filesystem:
           return false;
         }
         // The sync records name a camera's frame by its frame_index (frames since the camera was
-        // activated, session_layout.h / devices::Frame), the message sequence is its frame_id:
+        // activated, session/topics.h / devices::Frame), the message sequence is its frame_id:
         // frame_index = frame_id unwrapped (16- or 32-bit counters) minus the session's first.
         // A record naming the sequence itself is accepted too (frame_id == frame_index).
         const std::uint32_t seq = m.message.sequence;

@@ -20,24 +20,10 @@
 #include "rig_daemon/recording/foxglove_image.h"
 #include "rig_daemon/recording/mcap_reader.h"
 #include "rig_daemon/recording/session_conventions.h"
+#include "rig_daemon/session/topics.h"
 
 namespace hc::tracking {
 namespace {
-
-// Topic names of rig_daemon/daemon/session_layout.h (a header of the daemon library, which the
-// offline tools do not link): keep in step with it.
-namespace rig {
-constexpr std::string_view kSyncTopic = "/session/sync";
-constexpr std::string_view kStepsTopic = "/session/steps";
-constexpr std::string_view kGroundTruthTopic = "/sim/ground_truth";
-std::string camera_topic(std::string_view camera) {
-  std::string t;
-  t += '/';
-  t += camera;
-  t += "/image";
-  return t;
-}
-}  // namespace rig
 
 using Clock = std::chrono::steady_clock;
 // The median over the points of the distance to the nearest other point (0 for fewer than two).
@@ -349,8 +335,8 @@ Result<SessionDetections> read_session_detections(const std::filesystem::path& s
   std::map<std::uint64_t, Json> truth;
   Status bad;
   recording::ReadOptions ro;
-  ro.topics = {std::string(rig::kSyncTopic), std::string(rig::kStepsTopic),
-               std::string(rig::kGroundTruthTopic)};
+  ro.topics = {std::string(session::kSyncTopic), std::string(session::kStepsTopic),
+               std::string(session::kGroundTruthTopic)};
   ro.order = recording::ReadOrder::kLogTime;
   Status read = reader.read_messages(ro, [&](const recording::MessageEvent& e) {
     Result<Json> j = recording::parse_json_message(e.message.data);
@@ -360,7 +346,7 @@ Result<SessionDetections> read_session_detections(const std::filesystem::path& s
       return false;
     }
     const std::string& topic = e.channel->topic;
-    if (topic == rig::kSyncTopic) {
+    if (topic == session::kSyncTopic) {
       std::uint64_t index = 0;
       Sync s;
       if (!get_int(*j, "trigger_index", index) || !get_int(*j, "edge_host_ns", s.edge_ns)) {
@@ -370,7 +356,7 @@ Result<SessionDetections> read_session_detections(const std::filesystem::path& s
       }
       s.has_force = get_vec3(*j, "force_n", s.force);
       sync[index] = s;
-    } else if (topic == rig::kStepsTopic) {
+    } else if (topic == session::kStepsTopic) {
       SessionStep st;
       if (!j->contains("trigger_indices") || !(*j)["trigger_indices"].is_array() ||
           (*j)["trigger_indices"].empty() || !(*j)["trigger_indices"][0].is_number_integer()) {
@@ -467,7 +453,7 @@ Result<SessionDetections> read_session_detections(const std::filesystem::path& s
   std::map<std::string, std::size_t> camera_of_topic;
   std::vector<std::string> topics;
   for (std::size_t c = 0; c < nc; ++c) {
-    topics.push_back(rig::camera_topic(out.cameras[c].name));
+    topics.push_back(session::camera_topic(out.cameras[c].name));
     camera_of_topic[topics.back()] = c;
   }
   std::optional<tbb::global_control> limit;

@@ -5,11 +5,11 @@
 #include <set>
 #include <sstream>
 
-#include "rig_daemon/daemon/session_layout.h"
-#include "rig_daemon/devices/codec.h"
 #include "rig_daemon/devices/sim_scene.h"
 #include "rig_daemon/recording/foxglove_image.h"
 #include "rig_daemon/recording/session_conventions.h"
+#include "rig_daemon/session/codec.h"
+#include "rig_daemon/session/topics.h"
 #include "session_impl.h"
 
 namespace hc::rig {
@@ -241,9 +241,10 @@ Status Session::Impl::setup() {
   };
   const rec::StringMap session_meta{{"device", "session"}, {"kind", "session"}, {"backend", ""}};
   if (trigger) {
-    const auto& s = dev::trigger_edge_schema();
-    HC_ASSIGN_OR_RETURN(ch_edges, recorder->add_json_channel(trigger_topic(trigger->name()), s.name,
-                                                             s.json_schema, meta(*trigger)));
+    const auto& s = session::trigger_edge_schema();
+    HC_ASSIGN_OR_RETURN(ch_edges,
+                        recorder->add_json_channel(session::trigger_topic(trigger->name()), s.name,
+                                                   s.json_schema, meta(*trigger)));
   }
   for (dev::Camera* c : cameras) {
     rec::StringMap m = meta(*c);
@@ -252,44 +253,47 @@ Status Session::Impl::setup() {
     m["height"] = std::to_string(info.height);
     m["format"] = std::string(dev::to_string(info.format));
     m["trigger_mode"] = std::string(dev::to_string(info.trigger_mode));
-    HC_ASSIGN_OR_RETURN(std::uint16_t id, recorder->add_image_channel(camera_topic(c->name()), m));
+    HC_ASSIGN_OR_RETURN(std::uint16_t id,
+                        recorder->add_image_channel(session::camera_topic(c->name()), m));
     ch_cams.push_back(id);
   }
   if (ft) {
-    const auto& s = dev::wrench_sample_schema();
+    const auto& s = session::wrench_sample_schema();
     rec::StringMap m = meta(*ft);
     m["counts_per_n"] = std::to_string(ft->calibration().counts_per_n);
     m["counts_per_nm"] = std::to_string(ft->calibration().counts_per_nm);
     m["sample_rate_hz"] = std::to_string(ft->sample_rate_hz());
-    HC_ASSIGN_OR_RETURN(
-        ch_ft, recorder->add_json_channel(wrench_topic(ft->name()), s.name, s.json_schema, m));
+    HC_ASSIGN_OR_RETURN(ch_ft, recorder->add_json_channel(session::wrench_topic(ft->name()), s.name,
+                                                          s.json_schema, m));
   }
   if (fsr) {
-    const auto& s = dev::fsr_sample_schema();
-    HC_ASSIGN_OR_RETURN(ch_fsr, recorder->add_json_channel(fsr_topic(fsr->name()), s.name,
+    const auto& s = session::fsr_sample_schema();
+    HC_ASSIGN_OR_RETURN(ch_fsr, recorder->add_json_channel(session::fsr_topic(fsr->name()), s.name,
                                                            s.json_schema, meta(*fsr)));
   }
   if (arm) {
-    const auto& s = dev::arm_state_schema();
+    const auto& s = session::arm_state_schema();
     HC_ASSIGN_OR_RETURN(ch_arm_state,
-                        recorder->add_json_channel(arm_state_topic(arm->name()), s.name,
+                        recorder->add_json_channel(session::arm_state_topic(arm->name()), s.name,
                                                    s.json_schema, meta(*arm)));
-    const auto& c = dev::arm_command_schema();
-    HC_ASSIGN_OR_RETURN(ch_arm_cmd, recorder->add_json_channel(arm_command_topic(arm->name()),
-                                                               c.name, c.json_schema, meta(*arm)));
+    const auto& c = session::arm_command_schema();
+    HC_ASSIGN_OR_RETURN(ch_arm_cmd,
+                        recorder->add_json_channel(session::arm_command_topic(arm->name()), c.name,
+                                                   c.json_schema, meta(*arm)));
   }
-  HC_ASSIGN_OR_RETURN(ch_sync, recorder->add_json_channel(kSyncTopic, "hardcopy.SyncRecord",
-                                                          kSyncSchema, session_meta));
-  HC_ASSIGN_OR_RETURN(ch_steps, recorder->add_json_channel(kStepsTopic, "hardcopy.Step",
+  HC_ASSIGN_OR_RETURN(
+      ch_sync, recorder->add_json_channel(session::kSyncTopic, "hardcopy.SyncRecord", kSyncSchema,
+                                          session_meta));
+  HC_ASSIGN_OR_RETURN(ch_steps, recorder->add_json_channel(session::kStepsTopic, "hardcopy.Step",
                                                            kStepSchema, session_meta));
-  HC_ASSIGN_OR_RETURN(ch_events, recorder->add_json_channel(kEventsTopic, "hardcopy.Event",
+  HC_ASSIGN_OR_RETURN(ch_events, recorder->add_json_channel(session::kEventsTopic, "hardcopy.Event",
                                                             kEventSchema, session_meta));
   have_truth = rig.world() != nullptr;
   if (have_truth) {
     HC_ASSIGN_OR_RETURN(
         ch_truth,
         recorder->add_json_channel(
-            kGroundTruthTopic, "hardcopy.GroundTruth", kTruthSchema,
+            session::kGroundTruthTopic, "hardcopy.GroundTruth", kTruthSchema,
             rec::StringMap{{"device", "world"}, {"kind", "ground_truth"}, {"backend", "sim"}}));
   }
 
@@ -324,7 +328,7 @@ Status Session::Impl::setup() {
   HC_RETURN_IF_ERROR(
       recorder->write_metadata_now(rec::kMetadataCalibration, {{"json", calib.dump()}}));
   if (rig.world() != nullptr) {
-    // The true parameters of the session's simulated cameras (session_layout.h).
+    // The true parameters of the session's simulated cameras (rig_daemon/session/topics.h).
     Json sim_cams = Json::object();
     for (const dev::sim::CameraRecord& r : rig.world()->cameras()) {
       if (!session_cameras.count(r.name)) continue;
@@ -341,7 +345,7 @@ Status Session::Impl::setup() {
                           {"center_m", vec_json(c.center_world())}};
     }
     HC_RETURN_IF_ERROR(
-        recorder->write_metadata_now(kMetadataSimCameras, {{"json", sim_cams.dump()}}));
+        recorder->write_metadata_now(session::kMetadataSimCameras, {{"json", sim_cams.dump()}}));
     if (plan.protocol == Protocol::kCalibration) {
       const CalibrationPlan& p = plan.calibration;
       dev::sim::BoardShow show;
@@ -364,7 +368,8 @@ Status Session::Impl::setup() {
       const Json board{{"cols", p.board_cols},   {"rows", p.board_rows},
                        {"square_m", p.square_m}, {"margin_squares", p.margin_squares},
                        {"seed", p.seed},         {"poses", std::move(poses)}};
-      HC_RETURN_IF_ERROR(recorder->write_metadata_now(kMetadataSimBoard, {{"json", board.dump()}}));
+      HC_RETURN_IF_ERROR(
+          recorder->write_metadata_now(session::kMetadataSimBoard, {{"json", board.dump()}}));
       board_show = std::move(show);
     }
   }
@@ -438,7 +443,7 @@ double Session::Impl::current_force() const {
 
 void Session::Impl::record_arm_state(const dev::ArmState& s) {
   recorder->write(ch_arm_state, s.host_ns, s.device_stamp_ns.value_or(s.host_ns),
-                  static_cast<std::uint32_t>(s.sequence), to_bytes(dev::to_json(s)));
+                  static_cast<std::uint32_t>(s.sequence), to_bytes(session::to_json(s)));
   last_arm = s;
   if (opts.live) opts.live->set_arm(s);
 }
@@ -469,7 +474,8 @@ Status Session::Impl::poll() {
     } else {
       for (const dev::TriggerEdge& e : edges_buf) {
         recorder->write(ch_edges, e.host_ns, e.device_stamp_ns.value_or(e.host_ns),
-                        static_cast<std::uint32_t>(e.device_counter), to_bytes(dev::to_json(e)));
+                        static_cast<std::uint32_t>(e.device_counter),
+                        to_bytes(session::to_json(e)));
         assoc->add_edge(e);
         if (e.rising) {
           ++edges_received;
@@ -489,7 +495,7 @@ Status Session::Impl::poll() {
         if (std::optional<SafetyTrip> t = safety->check_wrench(s, clock().now_ns()))
           handle_trip(*t);
         recorder->write(ch_ft, s.host_ns, s.device_stamp_ns.value_or(s.host_ns), s.rdt_sequence,
-                        to_bytes(dev::to_json(s)));
+                        to_bytes(session::to_json(s)));
         assoc->add_wrench(s);
         last_ft_ns = s.host_ns;
         recent_force.push_back(norm3(s.force_n));
@@ -531,7 +537,7 @@ Status Session::Impl::poll() {
     } else {
       for (const dev::FsrSample& s : fsr_buf) {
         recorder->write(ch_fsr, s.host_ns, s.device_stamp_ns.value_or(s.host_ns),
-                        static_cast<std::uint32_t>(s.sequence), to_bytes(dev::to_json(s)));
+                        static_cast<std::uint32_t>(s.sequence), to_bytes(session::to_json(s)));
         assoc->add_fsr(s);
       }
     }
@@ -660,7 +666,7 @@ Status Session::Impl::move_to(const dev::ArmPose& pose, double speed) {
   cmd.sequence = ++arm_command_sequence;
   const std::int64_t now = clock().now_ns();
   recorder->write(ch_arm_cmd, now, now, static_cast<std::uint32_t>(cmd.sequence),
-                  to_bytes(dev::to_json(cmd)));
+                  to_bytes(session::to_json(cmd)));
   HC_RETURN_IF_ERROR(arm->write(cmd));
   double dist = 0.0;
   if (last_arm) {
@@ -721,7 +727,7 @@ Status Session::Impl::run_automated() {
     home.sequence = ++arm_command_sequence;
     const std::int64_t now = clock().now_ns();
     recorder->write(ch_arm_cmd, now, now, static_cast<std::uint32_t>(home.sequence),
-                    to_bytes(dev::to_json(home)));
+                    to_bytes(session::to_json(home)));
     HC_RETURN_IF_ERROR(arm->write(home));
     Status arm_error;
     HC_RETURN_IF_ERROR(wait_for(
@@ -963,7 +969,7 @@ Json Session::Impl::finish(Status run_status) {
   if (opts.live) summary["cycle"] = opts.live->cycle_json();
   rec::StringMap session_meta{
       {"state", std::string(to_string(final_state))}, {"reason", reason}, {"json", summary.dump()}};
-  recorder->write_metadata(std::string(kMetadataSession), session_meta);
+  recorder->write_metadata(std::string(session::kMetadataSession), session_meta);
   Result<rec::McapWriter::Summary> closed = recorder->close();
   if (!closed.ok()) {
     summary["state"] = to_string(SessionState::kFailed);

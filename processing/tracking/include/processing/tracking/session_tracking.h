@@ -20,7 +20,7 @@
 // tip along the shaft axis (distances from the session's rig config or SessionTrackOptions).
 // Steps where they are not both seen fall back to the arm's reported pose (counted).
 //
-// Session layout read (rig_daemon/daemon/session_layout.h): /<camera>/image (foxglove.RawImage
+// Session layout read (rig_daemon/session/topics.h): /<camera>/image (foxglove.RawImage
 // mono8 or rgb8), /session/sync (trigger index, edge time, F/T force), /session/steps (one per
 // deformation step: trigger_indices, pose of the probe tip, location/level/step), and on simulated
 // rigs /sim/ground_truth (markers_m per trigger index). Without /session/steps every sync record
