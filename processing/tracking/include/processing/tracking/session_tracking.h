@@ -187,7 +187,7 @@ struct SessionTrackOptions {
   double contact_tolerance_m = 0.3e-3;
   double fill_regularization_m = 0.0;
   // The probe sphere constrains the fill: filled nodes inside it and surface nodes within its
-  // contact patch are put on it, and the patch itself is a constraint (session_tracking.cpp
+  // contact patch are put on it, and the patch itself is a constraint (occlusion_fill.cpp
   // fill_with_probe_contact).
   bool probe_constraint = true;
   // Measured markers used as RBF centres per step: the ones nearest the unmeasured markers and
