@@ -49,8 +49,9 @@ Result<HandEyeSessionData> read_hand_eye_session(const std::filesystem::path& se
         "{}: no arm state channel{} (hand-eye needs the arm's "
         "poses; record with the automated protocol)",
         name, options.arm_device.empty() ? "" : " of device '" + options.arm_device + "'"));
-  // The simulator's true cameras (metadata "sim_cameras", session/topics.h): the rig frame is the
-  // calibration's first camera's frame, so the true world_from_rig is that camera's pose.
+  // The simulator's true cameras (metadata "sim_cameras", rig_daemon/session/topics.h): the rig
+  // frame is the calibration's first camera's frame, so the true world_from_rig is that camera's
+  // pose.
   std::optional<Eigen::Isometry3d> truth_x;
   if (!calibration.cameras.empty()) {
     HC_ASSIGN_OR_RETURN(std::vector<rec::Metadata> metadata, reader.read_metadata());

@@ -18,6 +18,7 @@
 #include "rig_daemon/recording/foxglove_image.h"
 #include "rig_daemon/recording/mcap_reader.h"
 #include "rig_daemon/recording/session_conventions.h"
+#include "rig_daemon/session/topics.h"
 
 namespace hc::calib {
 
@@ -169,13 +170,14 @@ Result<std::vector<CameraObservations>> detect_in_session(const std::filesystem:
                             "metadata kind=camera)");
   // Trigger indexes from /session/sync: camera -> (frame sequence -> trigger index).
   std::map<std::string, std::map<std::uint64_t, std::int64_t>> trigger_of;
-  if (reader.find_channel("/session/sync") != nullptr) {
+  const std::string sync_topic(session::kSyncTopic);
+  if (reader.find_channel(sync_topic) != nullptr) {
     Status parse_status;
     HC_RETURN_IF_ERROR(
-        reader.read_messages({.topics = {"/session/sync"}}, [&](const recording::MessageEvent& m) {
+        reader.read_messages({.topics = {sync_topic}}, [&](const recording::MessageEvent& m) {
           Result<Json> j = recording::parse_json_message(m.message.data);
           if (!j.ok()) {
-            parse_status = j.status().with_context(file + ": /session/sync");
+            parse_status = j.status().with_context(file + ": " + sync_topic);
             return false;
           }
           if (!j->is_object() || !j->contains("trigger_index") || !j->contains("frames") ||
@@ -267,7 +269,7 @@ Result<std::vector<CameraObservations>> detect_in_session(const std::filesystem:
           return false;
         }
         // The sync records name a camera's frame by its frame_index (frames since the camera was
-        // activated, session/topics.h / devices::Frame), the message sequence is its frame_id:
+        // activated, rig_daemon/session/topics.h), the message sequence is its frame_id:
         // frame_index = frame_id unwrapped (16- or 32-bit counters) minus the session's first.
         // A record naming the sequence itself is accepted too (frame_id == frame_index).
         const std::uint32_t seq = m.message.sequence;
