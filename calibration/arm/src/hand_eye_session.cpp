@@ -25,33 +25,11 @@ struct ArmSample {
   hc::session::ArmPose pose;
 };
 
-}  // namespace
-
-Result<HandEyeSessionData> read_hand_eye_session(const std::filesystem::path& session,
-                                                 const RigCalibration& calibration,
-                                                 const HandEyeSessionOptions& options) {
-  const std::string name = session.string();
-  // Arm states and shaft-marker truth first (cheap, and a session without an arm fails fast).
-  HC_ASSIGN_OR_RETURN(rec::McapReader reader, rec::McapReader::open(session));
-  const rec::Channel* arm = nullptr;
-  for (const auto& [id, ch] : reader.channels()) {
-    const auto k = ch.metadata.find("kind");
-    const auto d = ch.metadata.find("device");
-    if (k == ch.metadata.end() || k->second != "arm") continue;
-    if (ch.topic.size() < 6 || ch.topic.substr(ch.topic.size() - 6) != "/state") continue;
-    if (!options.arm_device.empty() && (d == ch.metadata.end() || d->second != options.arm_device))
-      continue;
-    arm = &ch;
-    break;
-  }
-  if (!arm)
-    return invalid_argument(fmt::format(
-        "{}: no arm state channel{} (hand-eye needs the arm's "
-        "poses; record with the automated protocol)",
-        name, options.arm_device.empty() ? "" : " of device '" + options.arm_device + "'"));
-  // The simulator's true cameras (metadata "sim_cameras", rig_daemon/session/topics.h): the rig
-  // frame is the calibration's first camera's frame, so the true world_from_rig is that camera's
-  // pose.
+// The simulator's true cameras (metadata "sim_cameras", rig_daemon/session/topics.h): the rig
+// frame is the calibration's first camera's frame, so the true world_from_rig is that camera's
+// pose.
+Result<std::optional<Eigen::Isometry3d>> true_world_from_rig(const rec::McapReader& reader,
+                                                             const RigCalibration& calibration) {
   std::optional<Eigen::Isometry3d> truth_x;
   if (!calibration.cameras.empty()) {
     HC_ASSIGN_OR_RETURN(std::vector<rec::Metadata> metadata, reader.read_metadata());
@@ -84,6 +62,35 @@ Result<HandEyeSessionData> read_hand_eye_session(const std::filesystem::path& se
       }
     }
   }
+  return truth_x;
+}
+
+}  // namespace
+
+Result<HandEyeSessionData> read_hand_eye_session(const std::filesystem::path& session,
+                                                 const RigCalibration& calibration,
+                                                 const HandEyeSessionOptions& options) {
+  const std::string name = session.string();
+  // Arm states and shaft-marker truth first (cheap, and a session without an arm fails fast).
+  HC_ASSIGN_OR_RETURN(rec::McapReader reader, rec::McapReader::open(session));
+  const rec::Channel* arm = nullptr;
+  for (const auto& [id, ch] : reader.channels()) {
+    const auto k = ch.metadata.find("kind");
+    const auto d = ch.metadata.find("device");
+    if (k == ch.metadata.end() || k->second != "arm") continue;
+    if (ch.topic.size() < 6 || ch.topic.substr(ch.topic.size() - 6) != "/state") continue;
+    if (!options.arm_device.empty() && (d == ch.metadata.end() || d->second != options.arm_device))
+      continue;
+    arm = &ch;
+    break;
+  }
+  if (!arm)
+    return invalid_argument(fmt::format(
+        "{}: no arm state channel{} (hand-eye needs the arm's "
+        "poses; record with the automated protocol)",
+        name, options.arm_device.empty() ? "" : " of device '" + options.arm_device + "'"));
+  HC_ASSIGN_OR_RETURN(const std::optional<Eigen::Isometry3d> truth_x,
+                      true_world_from_rig(reader, calibration));
   std::vector<ArmSample> states;
   std::map<std::uint64_t, std::array<Eigen::Vector3d, 2>> truth;  // trigger index -> markers
   rec::ReadOptions ro;
