@@ -32,7 +32,7 @@ class Recorder {
     writer_ = std::move(w).value();
   }
   std::uint16_t json_channel(const std::string& device, DeviceKind kind, const std::string& topic,
-                             const MessageSchema& schema) {
+                             const session::MessageSchema& schema) {
     auto sid = writer_->add_schema(schema.name, rec::kJsonSchemaEncoding,
                                    bytes(std::string(schema.json_schema)));
     EXPECT_TRUE(sid.ok());
