@@ -1,4 +1,4 @@
-// Fuzzes the JSON decoders of the rig's time-series messages (rig_daemon/devices/codec.h): any
+// Fuzzes the JSON decoders of the rig's time-series messages (rig_daemon/session/codec.h): any
 // input must give a value or an error, never a crash; a decoded value re-encodes and decodes to
 // the same text.
 #include <cstddef>
@@ -6,22 +6,22 @@
 #include <cstdlib>
 #include <string_view>
 
-#include "rig_daemon/devices/codec.h"
+#include "rig_daemon/session/codec.h"
 
 namespace {
 template <typename T, typename Decode>
 void round_trip(std::string_view text, Decode decode) {
   hc::Result<T> first = decode(text);
   if (!first.ok()) return;
-  const std::string again = hc::devices::to_json(*first);
+  const std::string again = hc::session::to_json(*first);
   hc::Result<T> second = decode(again);
-  if (!second.ok() || hc::devices::to_json(*second) != again) std::abort();
+  if (!second.ok() || hc::session::to_json(*second) != again) std::abort();
 }
 }  // namespace
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
   const std::string_view text(reinterpret_cast<const char*>(data), size);
-  using namespace hc::devices;
+  using namespace hc::session;
   round_trip<TriggerEdge>(text, trigger_edge_from_json);
   round_trip<FsrSample>(text, fsr_sample_from_json);
   round_trip<WrenchSample>(text, wrench_sample_from_json);

@@ -19,9 +19,9 @@
 #include "rig_daemon/daemon/daemon.h"
 #include "rig_daemon/daemon/plan.h"
 #include "rig_daemon/daemon/rig_config.h"
-#include "rig_daemon/daemon/session_layout.h"
 #include "rig_daemon/devices/clock.h"
 #include "rig_daemon/recording/mcap_reader.h"
+#include "rig_daemon/session/topics.h"
 
 namespace hc::testing {
 
@@ -92,7 +92,7 @@ inline Result<calib::RigCalibration> true_rig_of_session(const std::filesystem::
   HC_ASSIGN_OR_RETURN(recording::McapReader reader, recording::McapReader::open(session));
   HC_ASSIGN_OR_RETURN(std::vector<recording::Metadata> md, reader.read_metadata());
   for (const recording::Metadata& m : md) {
-    if (m.name != rig::kMetadataSimCameras) continue;
+    if (m.name != session::kMetadataSimCameras) continue;
     HC_ASSIGN_OR_RETURN(Json j, parse_json(m.metadata.at("json"), "sim_cameras"));
     calib::RigCalibration rig;
     Eigen::Isometry3d cam0_from_world = Eigen::Isometry3d::Identity();

@@ -10,10 +10,10 @@
 #include "common/json.h"
 #include "processing/tracking/session_tracking.h"
 #include "processing/tracking/tracker.h"
-#include "rig_daemon/daemon/session_layout.h"
-#include "rig_daemon/devices/codec.h"
 #include "rig_daemon/recording/mcap_reader.h"
 #include "rig_daemon/recording/session_conventions.h"
+#include "rig_daemon/session/codec.h"
+#include "rig_daemon/session/topics.h"
 
 namespace hc::calib {
 namespace {
@@ -22,40 +22,19 @@ namespace rec = hc::recording;
 
 struct ArmSample {
   std::int64_t t_ns;
-  devices::ArmPose pose;
+  hc::session::ArmPose pose;
 };
 
-}  // namespace
-
-Result<HandEyeSessionData> read_hand_eye_session(const std::filesystem::path& session,
-                                                 const RigCalibration& calibration,
-                                                 const HandEyeSessionOptions& options) {
-  const std::string name = session.string();
-  // Arm states and shaft-marker truth first (cheap, and a session without an arm fails fast).
-  HC_ASSIGN_OR_RETURN(rec::McapReader reader, rec::McapReader::open(session));
-  const rec::Channel* arm = nullptr;
-  for (const auto& [id, ch] : reader.channels()) {
-    const auto k = ch.metadata.find("kind");
-    const auto d = ch.metadata.find("device");
-    if (k == ch.metadata.end() || k->second != "arm") continue;
-    if (ch.topic.size() < 6 || ch.topic.substr(ch.topic.size() - 6) != "/state") continue;
-    if (!options.arm_device.empty() && (d == ch.metadata.end() || d->second != options.arm_device))
-      continue;
-    arm = &ch;
-    break;
-  }
-  if (!arm)
-    return invalid_argument(fmt::format(
-        "{}: no arm state channel{} (hand-eye needs the arm's "
-        "poses; record with the automated protocol)",
-        name, options.arm_device.empty() ? "" : " of device '" + options.arm_device + "'"));
-  // The simulator's true cameras (metadata "sim_cameras", session_layout.h): the rig frame is the
-  // calibration's first camera's frame, so the true world_from_rig is that camera's pose.
+// The simulator's true cameras (metadata "sim_cameras", rig_daemon/session/topics.h): the rig
+// frame is the calibration's first camera's frame, so the true world_from_rig is that camera's
+// pose.
+Result<std::optional<Eigen::Isometry3d>> true_world_from_rig(const rec::McapReader& reader,
+                                                             const RigCalibration& calibration) {
   std::optional<Eigen::Isometry3d> truth_x;
   if (!calibration.cameras.empty()) {
     HC_ASSIGN_OR_RETURN(std::vector<rec::Metadata> metadata, reader.read_metadata());
     for (const rec::Metadata& m : metadata) {
-      if (m.name != hc::rig::kMetadataSimCameras) continue;
+      if (m.name != hc::session::kMetadataSimCameras) continue;
       const auto js = m.metadata.find("json");
       if (js == m.metadata.end()) continue;
       Result<Json> j = parse_json(js->second, "sim_cameras");
@@ -83,16 +62,45 @@ Result<HandEyeSessionData> read_hand_eye_session(const std::filesystem::path& se
       }
     }
   }
+  return truth_x;
+}
+
+}  // namespace
+
+Result<HandEyeSessionData> read_hand_eye_session(const std::filesystem::path& session,
+                                                 const RigCalibration& calibration,
+                                                 const HandEyeSessionOptions& options) {
+  const std::string name = session.string();
+  // Arm states and shaft-marker truth first (cheap, and a session without an arm fails fast).
+  HC_ASSIGN_OR_RETURN(rec::McapReader reader, rec::McapReader::open(session));
+  const rec::Channel* arm = nullptr;
+  for (const auto& [id, ch] : reader.channels()) {
+    const auto k = ch.metadata.find("kind");
+    const auto d = ch.metadata.find("device");
+    if (k == ch.metadata.end() || k->second != "arm") continue;
+    if (ch.topic.size() < 6 || ch.topic.substr(ch.topic.size() - 6) != "/state") continue;
+    if (!options.arm_device.empty() && (d == ch.metadata.end() || d->second != options.arm_device))
+      continue;
+    arm = &ch;
+    break;
+  }
+  if (!arm)
+    return invalid_argument(fmt::format(
+        "{}: no arm state channel{} (hand-eye needs the arm's "
+        "poses; record with the automated protocol)",
+        name, options.arm_device.empty() ? "" : " of device '" + options.arm_device + "'"));
+  HC_ASSIGN_OR_RETURN(const std::optional<Eigen::Isometry3d> truth_x,
+                      true_world_from_rig(reader, calibration));
   std::vector<ArmSample> states;
   std::map<std::uint64_t, std::array<Eigen::Vector3d, 2>> truth;  // trigger index -> markers
   rec::ReadOptions ro;
   ro.topics = {arm->topic};
-  const rec::Channel* gt = reader.find_channel(hc::rig::kGroundTruthTopic);
+  const rec::Channel* gt = reader.find_channel(hc::session::kGroundTruthTopic);
   if (gt) ro.topics.push_back(gt->topic);
   Status error;
   HC_RETURN_IF_ERROR(reader.read_messages(ro, [&](const rec::MessageEvent& e) {
     if (e.channel->id == arm->id) {
-      Result<devices::ArmState> s = devices::arm_state_from_json(
+      Result<hc::session::ArmState> s = hc::session::arm_state_from_json(
           {reinterpret_cast<const char*>(e.message.data.data()), e.message.data.size()});
       if (!s.ok()) {
         error = s.status().with_context(
@@ -144,7 +152,7 @@ Result<HandEyeSessionData> read_hand_eye_session(const std::filesystem::path& se
     const auto it = std::upper_bound(states.begin(), states.end(), st.edge_host_ns,
                                      [](std::int64_t t, const ArmSample& a) { return t < a.t_ns; });
     if (it == states.begin()) continue;  // no arm state yet
-    const devices::ArmPose& pose = std::prev(it)->pose;
+    const hc::session::ArmPose& pose = std::prev(it)->pose;
     std::vector<Eigen::Vector3d> isolated, rest;
     // The tracker's reader sets apart the dots several times a specimen dot's area (the shaft
     // markers are such balls on a high-resolution rig): exactly two points matched from those

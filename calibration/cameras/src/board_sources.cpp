@@ -18,6 +18,7 @@
 #include "rig_daemon/recording/foxglove_image.h"
 #include "rig_daemon/recording/mcap_reader.h"
 #include "rig_daemon/recording/session_conventions.h"
+#include "rig_daemon/session/topics.h"
 
 namespace hc::calib {
 
@@ -37,6 +38,80 @@ std::string no_board_message(const CameraObservations& cam, int images, const Bo
                              const std::string& where) {
   return fmt::format("no board found: camera '{}' shows no {} in any of its {} image(s){}",
                      cam.name, board.to_string(), images, where);
+}
+
+// Trigger indexes from /session/sync: camera -> (frame sequence -> trigger index); empty without
+// the channel.
+using TriggerIndexes = std::map<std::string, std::map<std::uint64_t, std::int64_t>>;
+Result<TriggerIndexes> read_sync_triggers(const recording::McapReader& reader,
+                                          const std::string& file) {
+  TriggerIndexes trigger_of;
+  const std::string sync_topic(session::kSyncTopic);
+  if (reader.find_channel(sync_topic) != nullptr) {
+    Status parse_status;
+    HC_RETURN_IF_ERROR(
+        reader.read_messages({.topics = {sync_topic}}, [&](const recording::MessageEvent& m) {
+          Result<Json> j = recording::parse_json_message(m.message.data);
+          if (!j.ok()) {
+            parse_status = j.status().with_context(file + ": " + sync_topic);
+            return false;
+          }
+          if (!j->is_object() || !j->contains("trigger_index") || !j->contains("frames") ||
+              !(*j)["frames"].is_object() || !(*j)["trigger_index"].is_number_integer()) {
+            parse_status = invalid_argument(file +
+                                            ": /session/sync record without trigger_index "
+                                            "and frames");
+            return false;
+          }
+          const std::int64_t trig = (*j)["trigger_index"].get<std::int64_t>();
+          for (const auto& [cam, seq] : (*j)["frames"].items())
+            if (seq.is_number_unsigned() || seq.is_number_integer())
+              trigger_of[cam][seq.get<std::uint64_t>()] = trig;
+          return true;
+        }));
+    HC_RETURN_IF_ERROR(parse_status);
+  }
+  return trigger_of;
+}
+
+// A camera message (foxglove.RawImage or foxglove.CompressedImage) as a grey image.
+Status decode_grey(const recording::MessageEvent& m, const std::string& where, cv::Mat& grey) {
+  const std::string schema = m.schema ? m.schema->name : "";
+  try {
+    if (schema == recording::kCompressedImageSchemaName) {
+      Result<recording::CompressedImage> ci_img =
+          recording::decode_compressed_image(m.message.data);
+      if (!ci_img.ok()) return ci_img.status().with_context(where);
+      grey = cv::imdecode(
+          cv::Mat(1, static_cast<int>(ci_img->data.size()), CV_8UC1, ci_img->data.data()),
+          cv::IMREAD_GRAYSCALE);
+      if (grey.empty())
+        return invalid_argument(where + ": undecodable " + ci_img->format + " image");
+    } else {
+      Result<recording::RawImage> raw = recording::decode_raw_image(m.message.data);
+      if (!raw.ok()) return raw.status().with_context(where);
+      const std::string& enc = raw->encoding;
+      const int w = static_cast<int>(raw->width), h = static_cast<int>(raw->height);
+      // cv::Mat header over the decoded buffer (no copy; const_cast as cv::Mat has no
+      // const view).
+      auto* px = const_cast<std::uint8_t*>(raw->data.data());
+      if (enc == "mono8") {
+        cv::Mat(h, w, CV_8UC1, px, raw->step).copyTo(grey);
+      } else if (enc == "rgb8" || enc == "bgr8") {
+        cv::cvtColor(cv::Mat(h, w, CV_8UC3, px, raw->step), grey,
+                     enc == "rgb8" ? cv::COLOR_RGB2GRAY : cv::COLOR_BGR2GRAY);
+      } else if (enc == "rgba8" || enc == "bgra8") {
+        cv::cvtColor(cv::Mat(h, w, CV_8UC4, px, raw->step), grey,
+                     enc == "rgba8" ? cv::COLOR_RGBA2GRAY : cv::COLOR_BGRA2GRAY);
+      } else {
+        return invalid_argument(where + ": unsupported image encoding '" + enc +
+                                "' (mono8, rgb8, bgr8, rgba8, bgra8)");
+      }
+    }
+  } catch (const cv::Exception& e) {
+    return invalid_argument(where + ": " + e.what());
+  }
+  return {};
 }
 
 }  // namespace
@@ -168,31 +243,7 @@ Result<std::vector<CameraObservations>> detect_in_session(const std::filesystem:
                             ": the session has no camera channel (no channel with "
                             "metadata kind=camera)");
   // Trigger indexes from /session/sync: camera -> (frame sequence -> trigger index).
-  std::map<std::string, std::map<std::uint64_t, std::int64_t>> trigger_of;
-  if (reader.find_channel("/session/sync") != nullptr) {
-    Status parse_status;
-    HC_RETURN_IF_ERROR(
-        reader.read_messages({.topics = {"/session/sync"}}, [&](const recording::MessageEvent& m) {
-          Result<Json> j = recording::parse_json_message(m.message.data);
-          if (!j.ok()) {
-            parse_status = j.status().with_context(file + ": /session/sync");
-            return false;
-          }
-          if (!j->is_object() || !j->contains("trigger_index") || !j->contains("frames") ||
-              !(*j)["frames"].is_object() || !(*j)["trigger_index"].is_number_integer()) {
-            parse_status = invalid_argument(file +
-                                            ": /session/sync record without trigger_index "
-                                            "and frames");
-            return false;
-          }
-          const std::int64_t trig = (*j)["trigger_index"].get<std::int64_t>();
-          for (const auto& [cam, seq] : (*j)["frames"].items())
-            if (seq.is_number_unsigned() || seq.is_number_integer())
-              trigger_of[cam][seq.get<std::uint64_t>()] = trig;
-          return true;
-        }));
-    HC_RETURN_IF_ERROR(parse_status);
-  }
+  HC_ASSIGN_OR_RETURN(const TriggerIndexes trigger_of, read_sync_triggers(reader, file));
   std::uint64_t total = 0;
   if (auto counts = reader.message_counts(); counts.ok())
     for (const auto& [id, n] : *counts)
@@ -213,51 +264,8 @@ Result<std::vector<CameraObservations>> detect_in_session(const std::filesystem:
         const std::string where =
             fmt::format("{}: {} message {}", file, m.channel->topic, m.message.sequence);
         cv::Mat grey;
-        const std::string schema = m.schema ? m.schema->name : "";
-        try {
-          if (schema == recording::kCompressedImageSchemaName) {
-            Result<recording::CompressedImage> ci_img =
-                recording::decode_compressed_image(m.message.data);
-            if (!ci_img.ok()) {
-              status = ci_img.status().with_context(where);
-              return false;
-            }
-            grey = cv::imdecode(
-                cv::Mat(1, static_cast<int>(ci_img->data.size()), CV_8UC1, ci_img->data.data()),
-                cv::IMREAD_GRAYSCALE);
-            if (grey.empty()) {
-              status = invalid_argument(where + ": undecodable " + ci_img->format + " image");
-              return false;
-            }
-          } else {
-            Result<recording::RawImage> raw = recording::decode_raw_image(m.message.data);
-            if (!raw.ok()) {
-              status = raw.status().with_context(where);
-              return false;
-            }
-            const std::string& enc = raw->encoding;
-            const int w = static_cast<int>(raw->width), h = static_cast<int>(raw->height);
-            // cv::Mat header over the decoded buffer (no copy; const_cast as cv::Mat has no
-            // const view).
-            auto* px = const_cast<std::uint8_t*>(raw->data.data());
-            if (enc == "mono8") {
-              cv::Mat(h, w, CV_8UC1, px, raw->step).copyTo(grey);
-            } else if (enc == "rgb8" || enc == "bgr8") {
-              cv::cvtColor(cv::Mat(h, w, CV_8UC3, px, raw->step), grey,
-                           enc == "rgb8" ? cv::COLOR_RGB2GRAY : cv::COLOR_BGR2GRAY);
-            } else if (enc == "rgba8" || enc == "bgra8") {
-              cv::cvtColor(cv::Mat(h, w, CV_8UC4, px, raw->step), grey,
-                           enc == "rgba8" ? cv::COLOR_RGBA2GRAY : cv::COLOR_BGRA2GRAY);
-            } else {
-              status = invalid_argument(where + ": unsupported image encoding '" + enc +
-                                        "' (mono8, rgb8, bgr8, rgba8, bgra8)");
-              return false;
-            }
-          }
-        } catch (const cv::Exception& e) {
-          status = invalid_argument(where + ": " + e.what());
-          return false;
-        }
+        status = decode_grey(m, where, grey);
+        if (!status.ok()) return false;
         if (cam.width == 0) {
           cam.width = grey.cols;
           cam.height = grey.rows;
@@ -267,7 +275,7 @@ Result<std::vector<CameraObservations>> detect_in_session(const std::filesystem:
           return false;
         }
         // The sync records name a camera's frame by its frame_index (frames since the camera was
-        // activated, session_layout.h / devices::Frame), the message sequence is its frame_id:
+        // activated, rig_daemon/session/topics.h), the message sequence is its frame_id:
         // frame_index = frame_id unwrapped (16- or 32-bit counters) minus the session's first.
         // A record naming the sequence itself is accepted too (frame_id == frame_index).
         const std::uint32_t seq = m.message.sequence;

@@ -6,10 +6,10 @@
 #include <cmath>
 
 #include "common/json.h"
-#include "rig_daemon/daemon/session_layout.h"
-#include "rig_daemon/devices/codec.h"
 #include "rig_daemon/recording/mcap_reader.h"
 #include "rig_daemon/recording/session_conventions.h"
+#include "rig_daemon/session/codec.h"
+#include "rig_daemon/session/topics.h"
 
 namespace hc::calib {
 namespace {
@@ -107,14 +107,14 @@ Result<ForceSession> read_force_session(const std::filesystem::path& path,
   if (fsr) ro.topics.push_back(fsr->topic);
   const rec::Channel* truth = nullptr;
   if (options.want_truth) {
-    truth = reader.find_channel(hc::rig::kGroundTruthTopic);
+    truth = reader.find_channel(hc::session::kGroundTruthTopic);
     if (truth) ro.topics.push_back(truth->topic);
   }
   Status error;
   const Status read = reader.read_messages(ro, [&](const rec::MessageEvent& e) {
     const std::string_view text = as_view(e.message.data);
     if (ft && e.channel->id == ft->id) {
-      Result<devices::WrenchSample> s = devices::wrench_sample_from_json(text);
+      Result<session::WrenchSample> s = session::wrench_sample_from_json(text);
       if (!s.ok()) {
         error = s.status().with_context(
             fmt::format("{}: {} sequence {}", name, ft->topic, e.message.sequence));
@@ -127,7 +127,7 @@ Result<ForceSession> read_force_session(const std::filesystem::path& path,
                  (i < 3 ? out.counts_per_n : out.counts_per_nm);
       out.wrench.push_back(r);
     } else if (fsr && e.channel->id == fsr->id) {
-      Result<devices::FsrSample> s = devices::fsr_sample_from_json(text);
+      Result<session::FsrSample> s = session::fsr_sample_from_json(text);
       if (!s.ok()) {
         error = s.status().with_context(
             fmt::format("{}: {} sequence {}", name, fsr->topic, e.message.sequence));

@@ -1,5 +1,7 @@
-// Private to the scheduler's translation units (scheduler.cpp: setup, the control cycle, the
-// protocols, finish; session_safety.cpp: trips, start checks, the retract after a safety stop).
+// Private to the scheduler's translation units (scheduler.cpp: the session's API, finish;
+// scheduler_setup.cpp: devices, channel table, metadata; scheduler_cycle.cpp: the control cycle;
+// scheduler_protocols.cpp: the plan modes; session_safety.cpp: trips, start checks, the retract
+// after a safety stop).
 #pragma once
 
 #include <algorithm>
@@ -24,6 +26,28 @@ namespace hc::rig {
 
 namespace rec = hc::recording;
 namespace dev = hc::devices;
+
+// Below this force magnitude the probe is taken to be out of contact (the sim F/T noise is a few
+// hundredths of a newton; ATI Nano25 resolution is 1/24 N, thesis 5.6).
+inline constexpr double kContactForceN = 0.2;
+// A step is reached when the force is within this fraction of the level below its target.
+inline constexpr double kStepTolerance = 0.02;
+// Probe increments while seeking a step's force stay within [step_m / 20, 5 step_m].
+inline constexpr int kMaxSeekMovesPerStep = 40;
+inline constexpr double kApproachSpeedMps = 0.05;
+inline constexpr double kPressSpeedMps = 0.02;
+// How long to wait for the frames and samples of one trigger edge.
+inline constexpr std::int64_t kEdgeTimeoutNs = 2'000'000'000;
+// How long to wait for a fresh F/T sample after an arm move. A stalled stream trips the safety
+// check (stall_timeout_s) in the same loop first; this only bounds the wait when the control
+// loop itself is slow (e.g. a heavily loaded machine), which is not a gap in the F/T stream.
+inline constexpr std::int64_t kFtAfterMoveTimeoutNs = 1'000'000'000;
+// Progress events at most this often.
+inline constexpr std::int64_t kProgressPeriodNs = 100'000'000;
+
+inline double norm3(const std::array<double, 3>& v) {
+  return std::sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]);
+}
 
 // Samples averaged for the "current force" (about 1.4 ms of a 7 kHz stream).
 inline constexpr std::size_t kForceWindow = 10;
@@ -112,7 +136,12 @@ struct Session::Impl {
   std::string step_text;
 
   // ---------------------------------------------------------------------------------------------
+  // setup(): choose_devices(), open_recording() (the channel table), write_opening_metadata(),
+  // then the ground-truth stream and the devices started.
   Status setup();
+  Status choose_devices();
+  Status open_recording();
+  Status write_opening_metadata();
   Status poll();
   Status cycle();
   Status wait_for(const std::function<bool()>& done_pred, std::int64_t timeout_ns,

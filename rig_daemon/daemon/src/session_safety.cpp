@@ -2,8 +2,8 @@
 // halted), the record of what the arm was told and did (the stop on the arm's command channel,
 // its state after it), the checks before an automated capture moves anything, and the retract
 // to the press's start pose after an over-force or workspace stop.
-#include "rig_daemon/devices/codec.h"
 #include "rig_daemon/recording/session_conventions.h"
+#include "rig_daemon/session/codec.h"
 #include "session_impl.h"
 
 namespace hc::rig {
@@ -26,7 +26,7 @@ void Session::Impl::record_arm_stop(std::int64_t stop_ns) {
   stop.type = dev::ArmCommand::Type::kStop;
   stop.sequence = ++arm_command_sequence;
   recorder->write(ch_arm_cmd, stop_ns, stop_ns, static_cast<std::uint32_t>(stop.sequence),
-                  to_bytes(dev::to_json(stop)));
+                  to_bytes(session::to_json(stop)));
   if (arm->state() != dev::DeviceState::kActive) return;
   // The arm's own account of the stop (kStopped, or kFault when it is the arm that failed).
   if (Result<dev::ArmState> st = arm->read(); st.ok()) record_arm_state(*st);
@@ -93,7 +93,7 @@ Status Session::Impl::retract_to(const dev::ArmPose& pose) {
   cmd.sequence = ++arm_command_sequence;
   std::int64_t now = clock().now_ns();
   recorder->write(ch_arm_cmd, now, now, static_cast<std::uint32_t>(cmd.sequence),
-                  to_bytes(dev::to_json(cmd)));
+                  to_bytes(session::to_json(cmd)));
   HC_RETURN_IF_ERROR(arm->write(cmd));
   double dist = 0.0;
   if (last_arm)

@@ -5,10 +5,10 @@
 #include <string>
 #include <string_view>
 
-#include "rig_daemon/devices/codec.h"
 #include "rig_daemon/devices/registry.h"
 #include "rig_daemon/devices/replay.h"
 #include "rig_daemon/recording/foxglove_image.h"
+#include "rig_daemon/session/codec.h"
 
 namespace hc::devices {
 
@@ -45,15 +45,15 @@ template <typename Item>
 Result<Item> decode(const ReplaySession::Message& m);
 template <>
 Result<TriggerEdge> decode(const ReplaySession::Message& m) {
-  return trigger_edge_from_json(text(m));
+  return session::trigger_edge_from_json(text(m));
 }
 template <>
 Result<FsrSample> decode(const ReplaySession::Message& m) {
-  return fsr_sample_from_json(text(m));
+  return session::fsr_sample_from_json(text(m));
 }
 template <>
 Result<WrenchSample> decode(const ReplaySession::Message& m) {
-  return wrench_sample_from_json(text(m));
+  return session::wrench_sample_from_json(text(m));
 }
 template <>
 Result<Frame> decode(const ReplaySession::Message& m) {
@@ -269,7 +269,7 @@ class ReplayTrigger final : public Trigger {
     HC_RETURN_IF_ERROR(binding_.bind(context(), node, kKind));
     lines_.clear();
     Status s = binding_.session->read(*binding_.stream, 0, kForever, [&](const auto& m) {
-      Result<TriggerEdge> e = trigger_edge_from_json(text(m));
+      Result<TriggerEdge> e = session::trigger_edge_from_json(text(m));
       if (!e.ok()) return true;
       if (std::find(lines_.begin(), lines_.end(), e->line) != lines_.end()) return false;
       lines_.push_back(e->line);
@@ -382,7 +382,7 @@ class ReplayArm final : public Arm {
     states_.clear();
     Status decode_status;
     Status s = binding_.session->read(*binding_.stream, 0, kForever, [&](const auto& m) {
-      Result<ArmState> st = arm_state_from_json(text(m));
+      Result<ArmState> st = session::arm_state_from_json(text(m));
       if (!st.ok()) {
         decode_status = st.status().with_context(binding_.stream->topic);
         return false;

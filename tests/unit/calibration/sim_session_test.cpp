@@ -3,7 +3,7 @@
 // high-resolution example rig (rig_daemon/examples/rig_sim_hires.yaml: seven 1600x1200 cameras,
 // f = 3500 px, each with its own distortion and principal point), then `hardcopy calib cameras
 // --session` calibrates it; the session's "sim_cameras" metadata holds the true parameters
-// (session_layout.h), expressed in the world frame.
+// (rig_daemon/session/topics.h), expressed in the world frame.
 #include <gtest/gtest.h>
 
 #include <algorithm>

@@ -258,7 +258,7 @@ TEST_F(SimForceSession, FtBiasMatchesTheSimulatorsOffsetAndDrift) {
   EXPECT_EQ(s->ft_device, "ft");
   Result<FtBiasResult> b = estimate_ft_bias(s->wrench);
   ASSERT_TRUE(b.ok()) << b.status().to_string();
-  // The simulated F/T (sim_devices.cpp): Fz = force + offset_n + drift_n_per_s (t - t_activate)
+  // The simulated F/T (sim_force_torque.cpp): Fz = force + offset_n + drift_n_per_s (t - t_activate)
   // + N(0, 1/24 N); other axes N(0, noise) with zero bias; counts rounded at 1e6 counts/N.
   // spec: offset 0.4 N, drift 0.002 N/s; the first sample is 1 ms after activation.
   EXPECT_NEAR(b->bias[2], 0.4, std::max(4.0 * b->bias_std[2], 2e-3));

@@ -1,7 +1,7 @@
 // A force-calibration session recorded from the simulated rig: the simulated 4-DOF arm presses its
 // probe into the (Hertz) specimen in a staircase of depths, down and back up, while the simulated
 // F/T sensor (1 kHz) and the simulated FSR (periodic) are read and written in rigd's session layout
-// (session_layout.h) through rigd's Recorder, with the simulator's true force on
+// (rig_daemon/session/topics.h) through rigd's Recorder, with the simulator's true force on
 // /sim/ground_truth. rigd's plans record either the FSR (hand-held) or the F/T (automated), never
 // both, so the test drives the devices itself, as the daemon's scheduler does.
 #pragma once
@@ -14,14 +14,14 @@
 
 #include "common/json.h"
 #include "rig_daemon/daemon/recorder.h"
-#include "rig_daemon/daemon/session_layout.h"
 #include "rig_daemon/devices/arm.h"
-#include "rig_daemon/devices/codec.h"
 #include "rig_daemon/devices/force_torque.h"
 #include "rig_daemon/devices/fsr.h"
 #include "rig_daemon/devices/registry.h"
 #include "rig_daemon/devices/sim_world.h"
 #include "rig_daemon/recording/session_conventions.h"
+#include "rig_daemon/session/codec.h"
+#include "rig_daemon/session/topics.h"
 
 namespace hc::calib::testing {
 
@@ -88,17 +88,17 @@ inline Status record_sim_force_session(const std::filesystem::path& path,
   };
   std::uint16_t ch_ft = 0, ch_fsr = 0, ch_truth = 0;
   if (spec.record_ft) {
-    const auto& s = dev::wrench_sample_schema();
-    HC_ASSIGN_OR_RETURN(ch_ft, rec->add_json_channel(rig::wrench_topic("ft"), s.name, s.json_schema,
-                                                     meta("ft", "force_torque")));
+    const auto& s = session::wrench_sample_schema();
+    HC_ASSIGN_OR_RETURN(ch_ft, rec->add_json_channel(session::wrench_topic("ft"), s.name,
+                                                     s.json_schema, meta("ft", "force_torque")));
   }
   if (spec.record_fsr) {
-    const auto& s = dev::fsr_sample_schema();
-    HC_ASSIGN_OR_RETURN(ch_fsr, rec->add_json_channel(rig::fsr_topic("fsr"), s.name, s.json_schema,
-                                                      meta("fsr", "fsr")));
+    const auto& s = session::fsr_sample_schema();
+    HC_ASSIGN_OR_RETURN(ch_fsr, rec->add_json_channel(session::fsr_topic("fsr"), s.name,
+                                                      s.json_schema, meta("fsr", "fsr")));
   }
   HC_ASSIGN_OR_RETURN(ch_truth,
-                      rec->add_json_channel(rig::kGroundTruthTopic, "hardcopy.GroundTruth",
+                      rec->add_json_channel(session::kGroundTruthTopic, "hardcopy.GroundTruth",
                                             R"({"type":"object"})", meta("world", "ground_truth")));
   const dev::FsrCalibration fc = fsr->calibration();
   Json calib{{"ft",
@@ -128,11 +128,11 @@ inline Status record_sim_force_session(const std::filesystem::path& path,
       HC_RETURN_IF_ERROR(fsr->read(fbuf, dev::Duration(0)).status());
       if (spec.record_ft)
         for (const auto& s : wbuf)
-          rec->write(ch_ft, s.host_ns, s.host_ns, s.rdt_sequence, to_bytes(dev::to_json(s)));
+          rec->write(ch_ft, s.host_ns, s.host_ns, s.rdt_sequence, to_bytes(session::to_json(s)));
       if (spec.record_fsr)
         for (const auto& s : fbuf) {
           rec->write(ch_fsr, s.host_ns, s.host_ns, static_cast<std::uint32_t>(s.sequence),
-                     to_bytes(dev::to_json(s)));
+                     to_bytes(session::to_json(s)));
           const Json t{{"host_ns", s.host_ns}, {"force_n", world->true_force_n(s.host_ns)}};
           rec->write(ch_truth, s.host_ns, s.host_ns, 0, recording::json_message(t));
         }

@@ -12,9 +12,9 @@
 #include <vector>
 
 #include "common/json.h"
-#include "rig_daemon/daemon/session_layout.h"
 #include "rig_daemon/recording/mcap_reader.h"
 #include "rig_daemon/recording/session_conventions.h"
+#include "rig_daemon/session/topics.h"
 
 namespace hc::rig::testing {
 
@@ -86,7 +86,7 @@ inline Check check_association(const testing::SessionContents& c,
   }
   out.edges = edges.size();
   for (const std::string& cam : cams) {
-    const auto& frames = c.by_topic.at(camera_topic(cam));
+    const auto& frames = c.by_topic.at(session::camera_topic(cam));
     EXPECT_EQ(frames.size(), edges.size()) << cam;
     for (std::size_t k = 0; k < std::min(frames.size(), edges.size()); ++k) {
       const std::int64_t dt = static_cast<std::int64_t>(frames[k].log_time) - edges[k].second;
@@ -117,7 +117,7 @@ inline Check check_association(const testing::SessionContents& c,
     EXPECT_LT(out.max_ft_error_ns, 1'000'000);
   }
   // The daemon's own sync records agree: one per edge, all complete.
-  const auto& sync = c.by_topic.at(std::string(kSyncTopic));
+  const auto& sync = c.by_topic.at(std::string(session::kSyncTopic));
   EXPECT_EQ(sync.size(), edges.size());
   for (const testing::Msg& m : sync)
     EXPECT_TRUE(json_of(m)["complete"].get<bool>()) << json_of(m).dump();

@@ -107,7 +107,7 @@ TEST(Session, AutomatedFileAssociatesIndependentlyAndReachesTheForces) {
   EXPECT_EQ(k.frames, 7u * 120u);  // seven cameras (thesis 5.6)
   // Every step's measured force is within 2 % of its level below the target (kStepTolerance)
   // or above it, and never above the plan's max_force_n (45 N).
-  const auto& steps = c.by_topic.at(std::string(kStepsTopic));
+  const auto& steps = c.by_topic.at(std::string(session::kStepsTopic));
   ASSERT_EQ(steps.size(), 120u);
   for (const testing::Msg& m : steps) {
     const Json j = json_of(m);
@@ -117,7 +117,7 @@ TEST(Session, AutomatedFileAssociatesIndependentlyAndReachesTheForces) {
     EXPECT_LE(j["force_n"].get<double>(), 45.0);
   }
   // Ground truth on its own channel, one per distinct frame time.
-  EXPECT_EQ(c.by_topic.at(std::string(kGroundTruthTopic)).size(), 120u);
+  EXPECT_EQ(c.by_topic.at(std::string(session::kGroundTruthTopic)).size(), 120u);
 }
 
 TEST(Session, SameInputsGiveTheSameMessages) {
@@ -179,7 +179,7 @@ TEST(Safety, OverForceStopsTheArmWithinOneControlCycle) {
   const testing::SessionContents c = read_session(s["session"].get<std::string>());
   EXPECT_EQ(c.metadata.at("session").at("state"), "aborted");
   bool logged = false;
-  for (const testing::Msg& m : c.by_topic.at(std::string(kEventsTopic)))
+  for (const testing::Msg& m : c.by_topic.at(std::string(session::kEventsTopic)))
     logged = logged || json_of(m)["kind"] == "over_force";
   EXPECT_TRUE(logged);
 }
@@ -229,11 +229,11 @@ TEST(Safety, EstopAlwaysWorksAndTheFileShowsTheArmStopped) {
   // state saying it stopped (before the fix: neither).
   const testing::SessionContents c = read_session(s["session"].get<std::string>());
   std::optional<std::uint64_t> stop_time;
-  for (const testing::Msg& m : c.by_topic.at(arm_command_topic("arm")))
+  for (const testing::Msg& m : c.by_topic.at(session::arm_command_topic("arm")))
     if (json_of(m)["type"] == "stop") stop_time = m.log_time;
   ASSERT_TRUE(stop_time) << "no stop command recorded";
   bool stopped_after = false;
-  for (const testing::Msg& m : c.by_topic.at(arm_state_topic("arm")))
+  for (const testing::Msg& m : c.by_topic.at(session::arm_state_topic("arm")))
     stopped_after =
         stopped_after || (m.log_time >= *stop_time && json_of(m)["motion"] == "stopped");
   EXPECT_TRUE(stopped_after);
@@ -260,10 +260,10 @@ TEST(Safety, OverForceStopRetractsAndStartsWaitForReset) {
   // start, the last one at it.
   const testing::SessionContents c = read_session(s["session"].get<std::string>());
   double deepest = 1.0;
-  for (const testing::Msg& m : c.by_topic.at(arm_state_topic("arm")))
+  for (const testing::Msg& m : c.by_topic.at(session::arm_state_topic("arm")))
     deepest = std::min(deepest, json_of(m)["pose"]["z_m"].get<double>());
   EXPECT_LT(deepest, plan.automated.locations[0].position_m[2] - 0.001);
-  const Json last = json_of(c.by_topic.at(arm_state_topic("arm")).back());
+  const Json last = json_of(c.by_topic.at(session::arm_state_topic("arm")).back());
   EXPECT_NEAR(last["pose"]["z_m"].get<double>(), plan.automated.locations[0].position_m[2], 1e-9);
 
   // Latched: the next start is refused, naming the stop, until reset; then it runs through.
@@ -294,7 +294,7 @@ TEST(Safety, StartIsRefusedWhileTheForceIsHighOrTheArmInFault) {
             std::string::npos)
       << s["trip"].dump();
   const testing::SessionContents c = read_session(s["session"].get<std::string>());
-  for (const testing::Msg& m : c.by_topic.at(arm_command_topic("arm")))
+  for (const testing::Msg& m : c.by_topic.at(session::arm_command_topic("arm")))
     EXPECT_EQ(json_of(m)["type"], "stop");  // nothing was moved
   ASSERT_TRUE(d->reset().ok());
   world.clear_faults();
@@ -499,8 +499,8 @@ TEST(Session, CalibrationCaptureShowsTheBoardInEveryFrameSet) {
   EXPECT_EQ((*pj)["board"]["cols"], 9);
   // The true cameras: the embedded default's cam0 at (0.3, 0, 0.3) looking at (0, 0, 0.05),
   // f = 400 px, 320 x 240 (rig_config.cpp), so its centre and focal length come back exactly.
-  const Result<Json> cams =
-      parse_json(c.metadata.at(std::string(kMetadataSimCameras)).at("json"), "sim_cameras");
+  const Result<Json> cams = parse_json(
+      c.metadata.at(std::string(session::kMetadataSimCameras)).at("json"), "sim_cameras");
   ASSERT_TRUE(cams.ok());
   ASSERT_EQ(cams->size(), 7u);
   const Json& cam0 = (*cams)["cam0"];
@@ -516,16 +516,16 @@ TEST(Session, CalibrationCaptureShowsTheBoardInEveryFrameSet) {
   }
   EXPECT_NEAR((-R.transpose() * t - Eigen::Vector3d(0.3, 0.0, 0.3)).norm(), 0.0, 1e-12);
   const Result<Json> board =
-      parse_json(c.metadata.at(std::string(kMetadataSimBoard)).at("json"), "sim_board");
+      parse_json(c.metadata.at(std::string(session::kMetadataSimBoard)).at("json"), "sim_board");
   ASSERT_TRUE(board.ok());
   EXPECT_EQ((*board)["poses"].size(), 20u);
 
   // 20 synchronised frame sets; each frame's truth names the board pose of its trigger, pose k
   // for the k-th edge; every pose is visible to at least two cameras and some to a subset.
-  const auto& sync = c.by_topic.at(std::string(kSyncTopic));
+  const auto& sync = c.by_topic.at(std::string(session::kSyncTopic));
   ASSERT_EQ(sync.size(), 20u);
   for (const testing::Msg& m : sync) EXPECT_EQ(json_of(m)["frames"].size(), 7u);
-  const auto& truths = c.by_topic.at(std::string(kGroundTruthTopic));
+  const auto& truths = c.by_topic.at(std::string(session::kGroundTruthTopic));
   ASSERT_EQ(truths.size(), 20u);
   std::uint64_t first = 0;
   int subset = 0;
@@ -544,7 +544,7 @@ TEST(Session, CalibrationCaptureShowsTheBoardInEveryFrameSet) {
   }
   EXPECT_GE(subset, 2);
   // The frames show the board: cam0's first frame has both black (25) and white (235) squares.
-  const auto& frames = c.by_topic.at(camera_topic("cam0"));
+  const auto& frames = c.by_topic.at(session::camera_topic("cam0"));
   ASSERT_EQ(frames.size(), 20u);
   const Result<recording::RawImage> img = recording::decode_raw_image(frames[0].data);
   ASSERT_TRUE(img.ok());
@@ -576,9 +576,9 @@ TEST(Session, AutomatedTruthCarriesTheProbeAndPerCameraOcclusion) {
   ASSERT_EQ(s["state"], "finished") << s.dump(2);
   EXPECT_EQ(s["association"]["edges_complete"], 30);
   const testing::SessionContents c = read_session(s["session"].get<std::string>());
-  ASSERT_TRUE(c.metadata.count(std::string(kMetadataSimCameras)));
-  EXPECT_FALSE(c.metadata.count(std::string(kMetadataSimBoard)));  // not a calibration
-  const auto& truths = c.by_topic.at(std::string(kGroundTruthTopic));
+  ASSERT_TRUE(c.metadata.count(std::string(session::kMetadataSimCameras)));
+  EXPECT_FALSE(c.metadata.count(std::string(session::kMetadataSimBoard)));  // not a calibration
+  const auto& truths = c.by_topic.at(std::string(session::kGroundTruthTopic));
   ASSERT_EQ(truths.size(), 30u);
   std::size_t max_occluded = 0;
   for (const testing::Msg& m : truths) {

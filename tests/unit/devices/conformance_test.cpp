@@ -8,8 +8,8 @@
 #include <vector>
 
 #include "replay_support.h"
-#include "rig_daemon/devices/codec.h"
 #include "rig_daemon/devices/replay.h"
+#include "rig_daemon/session/codec.h"
 #include "sim_support.h"
 #include "test_data.h"
 

@@ -1,5 +1,5 @@
 // Recording a simulated capture the way the daemon's recorder lays out a session
-// (rig_daemon/daemon/session_layout.h), for the replay tests.
+// (rig_daemon/session/topics.h), for the replay tests.
 #pragma once
 
 #include <gtest/gtest.h>
@@ -9,10 +9,10 @@
 #include <string>
 #include <vector>
 
-#include "rig_daemon/devices/codec.h"
 #include "rig_daemon/recording/foxglove_image.h"
 #include "rig_daemon/recording/mcap_writer.h"
 #include "rig_daemon/recording/session_conventions.h"
+#include "rig_daemon/session/codec.h"
 #include "sim_support.h"
 
 namespace hc::devices::testing {
@@ -21,7 +21,7 @@ namespace rec = hc::recording;
 
 inline rec::Bytes bytes(const std::string& s) { return rec::Bytes(s.begin(), s.end()); }
 
-// A minimal recorder with the daemon's layout (session_layout.h).
+// A minimal recorder with the daemon's layout (rig_daemon/session/topics.h).
 class Recorder {
  public:
   explicit Recorder(const std::filesystem::path& path) {
@@ -32,7 +32,7 @@ class Recorder {
     writer_ = std::move(w).value();
   }
   std::uint16_t json_channel(const std::string& device, DeviceKind kind, const std::string& topic,
-                             const MessageSchema& schema) {
+                             const session::MessageSchema& schema) {
     auto sid = writer_->add_schema(schema.name, rec::kJsonSchemaEncoding,
                                    bytes(std::string(schema.json_schema)));
     EXPECT_TRUE(sid.ok());
@@ -94,12 +94,14 @@ inline Recorded record_session(const std::filesystem::path& path, bool dropouts 
        std::initializer_list<Device*>{trig.get(), cam.get(), fsr.get(), ft.get(), arm.get()})
     EXPECT_TRUE(d->activate().ok());
   const auto ch_edges =
-      r.json_channel("trig", DeviceKind::kTrigger, "/trig/edges", trigger_edge_schema());
+      r.json_channel("trig", DeviceKind::kTrigger, "/trig/edges", session::trigger_edge_schema());
   const auto ch_cam = r.image_channel("cam0");
-  const auto ch_fsr = r.json_channel("fsr", DeviceKind::kFsr, "/fsr/samples", fsr_sample_schema());
+  const auto ch_fsr =
+      r.json_channel("fsr", DeviceKind::kFsr, "/fsr/samples", session::fsr_sample_schema());
   const auto ch_ft =
-      r.json_channel("ft", DeviceKind::kForceTorque, "/ft/wrench", wrench_sample_schema());
-  const auto ch_arm = r.json_channel("arm", DeviceKind::kArm, "/arm/state", arm_state_schema());
+      r.json_channel("ft", DeviceKind::kForceTorque, "/ft/wrench", session::wrench_sample_schema());
+  const auto ch_arm =
+      r.json_channel("arm", DeviceKind::kArm, "/arm/state", session::arm_state_schema());
   const std::int64_t t0 = rig.clock->now_ns();
   if (dropouts) {
     rig.world->inject(

@@ -8,12 +8,12 @@
 #include <map>
 
 #include "replay_support.h"
-#include "rig_daemon/devices/codec.h"
 #include "rig_daemon/devices/replay.h"
 #include "rig_daemon/recording/foxglove_image.h"
 #include "rig_daemon/recording/mcap_reader.h"
 #include "rig_daemon/recording/mcap_writer.h"
 #include "rig_daemon/recording/session_conventions.h"
+#include "rig_daemon/session/codec.h"
 #include "sim_support.h"
 #include "test_data.h"
 
@@ -136,9 +136,9 @@ TEST(Replay, ReRecordingAReplayReproducesTheMessages) {
   {
     Recorder r(again);
     const auto ch_fsr =
-        r.json_channel("fsr", DeviceKind::kFsr, "/fsr/samples", fsr_sample_schema());
-    const auto ch_ft =
-        r.json_channel("ft", DeviceKind::kForceTorque, "/ft/wrench", wrench_sample_schema());
+        r.json_channel("fsr", DeviceKind::kFsr, "/fsr/samples", session::fsr_sample_schema());
+    const auto ch_ft = r.json_channel("ft", DeviceKind::kForceTorque, "/ft/wrench",
+                                      session::wrench_sample_schema());
     // Until the replay clock passes the end of the recording (each read returns as soon as an
     // item is due, so this takes about one call per sample).
     while (rp.session->recorded_ns_at(rp.clock->now_ns()) <= rp.session->end_ns()) {

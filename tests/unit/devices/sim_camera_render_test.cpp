@@ -1,4 +1,4 @@
-// Simulated cameras render on shared render threads (sim_devices.cpp), not inside read(): in
+// Simulated cameras render on shared render threads (sim_camera.cpp), not inside read(): in
 // simulated time the frames (pixels, stamps, counters, the read() that delivers them, the ground
 // truth) are exactly those of the inline renderer (`render_thread: false`); in real time read()
 // returns without waiting for pixels, frames keep their order, a buffer overrun counts lost, and

@@ -13,9 +13,9 @@
 #include "rig_daemon/daemon/daemon.h"
 #include "rig_daemon/daemon/plan.h"
 #include "rig_daemon/daemon/rig_config.h"
-#include "rig_daemon/daemon/session_layout.h"
 #include "rig_daemon/recording/mcap_reader.h"
 #include "rig_daemon/recording/session_conventions.h"
+#include "rig_daemon/session/topics.h"
 #include "test_data.h"
 
 namespace hc::figures {
@@ -60,7 +60,7 @@ std::vector<Json> steps_of(const std::filesystem::path& session) {
   Result<recording::McapReader> r = recording::McapReader::open(session);
   EXPECT_TRUE(r.ok());
   recording::ReadOptions ro;
-  ro.topics = {std::string(rig::kStepsTopic)};
+  ro.topics = {std::string(session::kStepsTopic)};
   ro.order = recording::ReadOrder::kFile;
   EXPECT_TRUE(r->read_messages(ro, [&](const recording::MessageEvent& e) {
                   out.push_back(*recording::parse_json_message(e.message.data));

@@ -10,15 +10,15 @@
 #include "rig_daemon/recording/mcap_reader.h"
 #include "rig_daemon/recording/mcap_tools.h"
 #include "rig_daemon/recording/session_conventions.h"
+#include "rig_daemon/session/topics.h"
 
 namespace hc::figures {
 namespace {
 
 namespace rec = hc::recording;
 
-// rigd's step channel (rig_daemon/daemon/session_layout.h; offline rooms do not include the
-// daemon, so the topic is named here).
-constexpr std::string_view kStepsTopic = "/session/steps";
+// rigd's step channel (rig_daemon/session/topics.h).
+using session::kStepsTopic;
 
 Status read_int(const Json& j, const char* key, int& out, const std::string& where) {
   if (!j.contains(key) || !j[key].is_number_integer())

@@ -1,7 +1,7 @@
 // Figures of a recorded session (rigd's MCAP): the force–displacement curve of every probe location
 // of an automated plan, from the session's step markers (/session/steps: location, level, step, the
 // probe's depth along the press direction from the location's start point, the force measured
-// there; rig_daemon/daemon/session_layout.h), and the session's headline numbers.
+// there; rig_daemon/session/topics.h), and the session's headline numbers.
 #pragma once
 
 #include <array>

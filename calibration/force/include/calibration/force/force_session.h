@@ -1,4 +1,4 @@
-// Reading the force streams of a recorded session (rig_daemon/daemon/session_layout.h) for the
+// Reading the force streams of a recorded session (rig_daemon/session/topics.h) for the
 // force calibrations: the F/T sensor's raw wrench (counts / counts-per-unit, before any bias the
 // device removed), the FSR's raw readings, the recorded device calibrations, and the simulator's
 // true contact force when the session has one.

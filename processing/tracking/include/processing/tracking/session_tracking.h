@@ -20,7 +20,7 @@
 // tip along the shaft axis (distances from the session's rig config or SessionTrackOptions).
 // Steps where they are not both seen fall back to the arm's reported pose (counted).
 //
-// Session layout read (rig_daemon/daemon/session_layout.h): /<camera>/image (foxglove.RawImage
+// Session layout read (rig_daemon/session/topics.h): /<camera>/image (foxglove.RawImage
 // mono8 or rgb8), /session/sync (trigger index, edge time, F/T force), /session/steps (one per
 // deformation step: trigger_indices, pose of the probe tip, location/level/step), and on simulated
 // rigs /sim/ground_truth (markers_m per trigger index). Without /session/steps every sync record
@@ -187,7 +187,7 @@ struct SessionTrackOptions {
   double contact_tolerance_m = 0.3e-3;
   double fill_regularization_m = 0.0;
   // The probe sphere constrains the fill: filled nodes inside it and surface nodes within its
-  // contact patch are put on it, and the patch itself is a constraint (session_tracking.cpp
+  // contact patch are put on it, and the patch itself is a constraint (occlusion_fill.cpp
   // fill_with_probe_contact).
   bool probe_constraint = true;
   // Measured markers used as RBF centres per step: the ones nearest the unmeasured markers and

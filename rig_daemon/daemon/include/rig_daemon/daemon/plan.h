@@ -31,7 +31,7 @@
 //
 // On a simulated rig the calibration protocol shows the board in the world (the specimen and the
 // probe are then not rendered) and the session gets a "sim_cameras" metadata record with the true
-// camera parameters (session_layout.h).
+// camera parameters (rig_daemon/session/topics.h).
 //
 // All accept `specimen:` (a map of scalars recorded with the session) and `description:`.
 #pragma once

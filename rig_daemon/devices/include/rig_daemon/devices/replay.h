@@ -1,4 +1,4 @@
-// Replay: a recorded session (MCAP, laid out as rig_daemon/daemon/session_layout.h describes)
+// Replay: a recorded session (MCAP, laid out as rig_daemon/session/topics.h describes)
 // served through the same device interfaces by the "replay" backends, so the daemon, the scheduler
 // and the tests cannot tell a replay from a capture.
 //

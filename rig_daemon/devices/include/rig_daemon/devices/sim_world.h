@@ -100,8 +100,8 @@ struct CameraTruth {
 
 // The truth behind one instant (a frame's exposure start, or any time asked for).
 //
-// On the session's /sim/ground_truth channel (hardcopy.GroundTruth json, rig_daemon/daemon
-// session_layout.h) the fields are: host_ns, trigger_index, probe {x_m, y_m, z_m, yaw_rad},
+// On the session's /sim/ground_truth channel (hardcopy.GroundTruth json, rig_daemon/session/
+// topics.h) the fields are: host_ns, trigger_index, probe {x_m, y_m, z_m, yaw_rad},
 // indentation_m, force_n, markers_m [[x, y, z]...] (empty while a board is shown), and
 //   probe_tip_m [x, y, z]        lowest point of the tip sphere (world frame)
 //   probe_axis [x, y, z]         unit vector from the tip up the shaft

@@ -1,5 +1,7 @@
-// Data that devices produce and consume: camera frames, trigger edges, FSR samples, force-torque
-// (wrench) samples, arm commands and states.
+// Data that devices produce and consume: camera frames, pulse trains, calibrations, the arm's
+// workspace, and the samples a session records (trigger edges, FSR and force-torque samples, arm
+// commands and states), which live in the session library (rig_daemon/session/records.h) and are
+// named here in the devices' namespace.
 //
 // Every sample carries
 //  * host_ns: host monotonic time (ns, on the Clock the device was created with) at which the host
@@ -21,7 +23,20 @@
 #include <string_view>
 #include <vector>
 
+#include "rig_daemon/session/records.h"
+
 namespace hc::devices {
+
+// The samples a session records, named here in the devices' namespace (rig_daemon/session/
+// records.h).
+using session::ArmCommand;
+using session::ArmMotion;
+using session::ArmPose;
+using session::ArmState;
+using session::FsrSample;
+using session::to_string;
+using session::TriggerEdge;
+using session::WrenchSample;
 
 // ---------------------------------------------------------------------------------------------
 // Cameras
@@ -73,18 +88,6 @@ struct Frame {
 // ---------------------------------------------------------------------------------------------
 // Trigger
 
-// One edge of a trigger output (or input) line.
-struct TriggerEdge {
-  // Pulses since activate(), counting from 0; a rising and the following falling edge of one
-  // pulse share the index. Frames and samples refer to the rising edge's index.
-  std::uint64_t index = 0;
-  std::uint32_t line = 0;  // output line (GPIO offset, firmware channel)
-  bool rising = true;
-  std::int64_t host_ns = 0;                     // host monotonic ns of the edge
-  std::optional<std::int64_t> device_stamp_ns;  // e.g. firmware µs timer × 1000
-  std::uint64_t device_counter = 0;             // the device's own edge/pulse counter
-};
-
 // A pulse train to fire on every configured line at once.
 struct PulseTrain {
   double rate_hz = 15.0;        // pulses per second (> 0)
@@ -112,16 +115,6 @@ struct FsrCalibration {
   double to_raw(double force_n) const;
 };
 
-struct FsrSample {
-  std::uint32_t raw = 0;       // ADC counts (or the Phidget's 0..1000 value)
-  double force_n = 0.0;        // raw through the device's FsrCalibration
-  std::uint32_t channel = 0;   // ADC channel / InterfaceKit sensor index
-  std::uint64_t sequence = 0;  // device counter (samples since activate, unwrapped)
-  std::int64_t host_ns = 0;
-  std::optional<std::int64_t> device_stamp_ns;
-  std::optional<std::uint64_t> trigger_index;
-};
-
 // ---------------------------------------------------------------------------------------------
 // Six-axis force-torque sensor
 
@@ -133,63 +126,8 @@ struct WrenchCalibration {
   double counts_per_nm = 1'000'000.0;  // ATI default "counts per torque" with torque in N·m
 };
 
-struct WrenchSample {
-  std::array<std::int32_t, 6> counts{};  // Fx Fy Fz Tx Ty Tz raw counts, before bias
-  std::array<double, 3> force_n{};       // bias removed, sensor frame
-  std::array<double, 3> torque_nm{};     // bias removed, sensor frame
-  std::uint32_t rdt_sequence = 0;        // RDT record sequence (per UDP record)
-  std::uint32_t ft_sequence = 0;         // sensor's internal sample counter
-  std::uint32_t status = 0;              // sensor status word (0 = healthy)
-  std::uint64_t sequence = 0;            // samples since activate, unwrapped, gaps = lost
-  std::int64_t host_ns = 0;
-  std::optional<std::int64_t> device_stamp_ns;
-  std::optional<std::uint64_t> trigger_index;
-};
-
 // ---------------------------------------------------------------------------------------------
 // 4-DOF arm (x, y, z and yaw of the tool; a SCARA-like arm pressing a vertical probe)
-
-// Pose of the tool tip in the arm's base frame.
-struct ArmPose {
-  double x_m = 0.0;
-  double y_m = 0.0;
-  double z_m = 0.0;
-  double yaw_rad = 0.0;
-};
-
-enum class ArmMotion : std::uint8_t {
-  kIdle,  // powered, not homed or holding position
-  kHoming,
-  kMoving,
-  kHolding,  // reached the target
-  kStopped,  // stopped by stop(); needs a new command
-  kFault,    // see ArmState::fault_code; needs clear_fault
-};
-std::string_view to_string(ArmMotion motion);
-
-struct ArmCommand {
-  enum class Type : std::uint8_t { kHome, kMoveTo, kSetSpeed, kStop, kClearFault };
-  Type type = Type::kMoveTo;
-  ArmPose target;              // kMoveTo
-  double speed_m_s = 0.0;      // kSetSpeed, or kMoveTo when > 0 (else the current speed)
-  std::uint64_t sequence = 0;  // caller's command counter (echoed in ArmState::command_sequence)
-};
-std::string_view to_string(ArmCommand::Type type);
-
-struct ArmState {
-  ArmPose pose;                    // measured tool pose
-  ArmPose target;                  // current target
-  std::array<double, 4> joints{};  // joint values (m or rad per joint), when the arm reports them
-  double speed_m_s = 0.0;          // configured Cartesian speed limit
-  ArmMotion motion = ArmMotion::kIdle;
-  bool homed = false;
-  std::uint32_t fault_code = 0;        // 0 = none
-  std::string fault;                   // human-readable fault, empty when none
-  std::uint64_t command_sequence = 0;  // sequence of the last accepted command
-  std::uint64_t sequence = 0;          // states read since activate
-  std::int64_t host_ns = 0;
-  std::optional<std::int64_t> device_stamp_ns;
-};
 
 // Axis-aligned workspace box of the tool tip plus speed limit.
 struct ArmLimits {

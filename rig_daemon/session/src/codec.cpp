@@ -1,4 +1,4 @@
-#include "rig_daemon/devices/codec.h"
+#include "rig_daemon/session/codec.h"
 
 #include <array>
 #include <string>
@@ -6,7 +6,7 @@
 #include "common/json.h"
 #include "common/json_reader.h"
 
-namespace hc::devices {
+namespace hc::session {
 
 namespace {
 
@@ -322,4 +322,4 @@ Result<ArmCommand> arm_command_from_json(std::string_view text) {
   return c;
 }
 
-}  // namespace hc::devices
+}  // namespace hc::session

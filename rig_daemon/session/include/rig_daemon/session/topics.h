@@ -1,7 +1,7 @@
 // How rigd lays out a session in MCAP: one channel per device stream, named after the device, plus
 // the session's own channels. Every channel's metadata carries "device", "kind" and "backend" (the
-// session channels: "device" = "session"), so a reader (the replay backends, `hardcopy session`)
-// can find a device's stream without knowing the topic.
+// session channels: "device" = "session"), so a reader (the replay backends, the offline rooms,
+// `hardcopy session`) can find a device's stream without knowing the topic.
 //
 //   /<camera>/image       foxglove.RawImage (protobuf)   log_time = Frame::host_ns,
 //                                                        publish_time = device stamp (else host),
@@ -38,7 +38,7 @@
 #include <string>
 #include <string_view>
 
-namespace hc::rig {
+namespace hc::session {
 
 // "/<device>/<stream>" (built by appending: g++ 12 warns falsely on "/" + std::string).
 inline std::string device_topic(std::string_view device, std::string_view stream) {
@@ -68,4 +68,4 @@ inline constexpr std::string_view kMetadataSession = "session";
 inline constexpr std::string_view kMetadataSimCameras = "sim_cameras";
 inline constexpr std::string_view kMetadataSimBoard = "sim_board";
 
-}  // namespace hc::rig
+}  // namespace hc::session

@@ -5,9 +5,9 @@
 #include <cmath>
 #include <limits>
 
-#include "rig_daemon/devices/codec.h"
+#include "rig_daemon/session/codec.h"
 
-namespace hc::devices {
+namespace hc::session {
 namespace {
 
 TEST(Codec, RoundTripsEveryMessage) {
@@ -135,4 +135,4 @@ TEST(Codec, MalformedMessagesAreRejected) {
 }
 
 }  // namespace
-}  // namespace hc::devices
+}  // namespace hc::session

@@ -1,20 +1,22 @@
 // JSON messages for the rig's time-series channels (MCAP message_encoding "json", schema encoding
 // "jsonschema"), shared by the recorder and the replay backends so that replaying a session and
-// recording it again reproduces the same bytes. Frames are not here: they travel as
-// foxglove.RawImage / foxglove.CompressedImage (the recording library's encoding).
+// recording it again reproduces the same bytes, and by the offline rooms that read a session's
+// samples. Frames are not here: they travel as foxglove.RawImage / foxglove.CompressedImage (the
+// recording library's encoding).
 //
-// Field names follow types.h; 64-bit integers are JSON numbers (exact up to 2^53, which host_ns and
-// counters stay below for centuries); absent optionals are omitted. Decoding is strict: a missing
-// required field, a wrong type or an out-of-range integer is kInvalidArgument naming the field.
+// Field names follow records.h; 64-bit integers are JSON numbers (exact up to 2^53, which host_ns
+// and counters stay below for centuries); absent optionals are omitted. Decoding is strict: a
+// missing required field, a wrong type or an out-of-range integer is kInvalidArgument naming the
+// field.
 #pragma once
 
 #include <string>
 #include <string_view>
 
 #include "common/status.h"
-#include "rig_daemon/devices/types.h"
+#include "rig_daemon/session/records.h"
 
-namespace hc::devices {
+namespace hc::session {
 
 // Schema names ("hardcopy.TriggerEdge", ...) and their JSON Schema documents.
 struct MessageSchema {
@@ -39,4 +41,4 @@ Result<WrenchSample> wrench_sample_from_json(std::string_view json);
 Result<ArmState> arm_state_from_json(std::string_view json);
 Result<ArmCommand> arm_command_from_json(std::string_view json);
 
-}  // namespace hc::devices
+}  // namespace hc::session

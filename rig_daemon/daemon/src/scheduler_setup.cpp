@@ -1,0 +1,318 @@
+// The session's setup (Session::Impl::setup): the devices it uses, the channel table of the
+// recording (one channel per device stream and the session's own channels, rig_daemon/session/
+// topics.h) with their schemas, and the metadata written before the first sample.
+#include <algorithm>
+#include <cmath>
+#include <set>
+#include <sstream>
+
+#include "rig_daemon/devices/sim_scene.h"
+#include "rig_daemon/recording/foxglove_image.h"
+#include "rig_daemon/recording/session_conventions.h"
+#include "rig_daemon/session/codec.h"
+#include "rig_daemon/session/topics.h"
+#include "session_impl.h"
+
+namespace hc::rig {
+
+namespace {
+
+Json vec_json(const Eigen::Vector3d& v) { return Json::array({v.x(), v.y(), v.z()}); }
+
+Json mat_json(const Eigen::Matrix3d& m) {
+  Json rows = Json::array();
+  for (int i = 0; i < 3; ++i) rows.push_back(Json::array({m(i, 0), m(i, 1), m(i, 2)}));
+  return rows;
+}
+
+std::string_view kSyncSchema =
+    R"({"type":"object","title":"hardcopy.SyncRecord","properties":{)"
+    R"("trigger_index":{"type":"integer"},"edge_host_ns":{"type":"integer","description":"host monotonic ns of the rising edge"},)"
+    R"("complete":{"type":"boolean"},"frames":{"type":"object","description":"camera -> frame_index"},)"
+    R"("missing_cameras":{"type":"array","items":{"type":"string"}},"ft_sequence":{"type":"integer"},)"
+    R"("ft_error_ns":{"type":"integer","description":"F/T sample host time - edge host time, ns"},)"
+    R"("force_n":{"type":"array","items":{"type":"number"},"description":"Fx Fy Fz, N"},)"
+    R"("fsr_sequence":{"type":"integer"},"fsr_error_ns":{"type":"integer"},"fsr_raw":{"type":"integer"},)"
+    R"("fsr_force_n":{"type":"number","description":"N"}}})";
+std::string_view kStepSchema =
+    R"({"type":"object","title":"hardcopy.Step","properties":{)"
+    R"("host_ns":{"type":"integer"},"location":{"type":"integer"},"level":{"type":"integer"},)"
+    R"("step":{"type":"integer"},"target_force_n":{"type":"number"},"force_n":{"type":"number"},)"
+    R"("depth_m":{"type":"number"},"pose":{"type":"object"},"trigger_indices":{"type":"array","items":{"type":"integer"}},)"
+    R"("board_pose":{"type":"integer","description":"calibration: index of the board pose"}}})";
+std::string_view kEventSchema =
+    R"({"type":"object","title":"hardcopy.Event","properties":{)"
+    R"("host_ns":{"type":"integer"},"kind":{"type":"string"},"message":{"type":"string"}}})";
+std::string_view kTruthSchema =
+    R"({"type":"object","title":"hardcopy.GroundTruth","properties":{)"
+    R"("host_ns":{"type":"integer"},"trigger_index":{"type":"integer"},"probe":{"type":"object"},)"
+    R"("indentation_m":{"type":"number"},"force_n":{"type":"number","description":"true contact force, N"},)"
+    R"("markers_m":{"type":"array","items":{"type":"array","items":{"type":"number"}}},)"
+    R"("probe_tip_m":{"type":"array","items":{"type":"number"}},"probe_axis":{"type":"array","items":{"type":"number"}},)"
+    R"("probe_radius_m":{"type":"number"},"probe_shown":{"type":"boolean"},)"
+    R"("shaft_markers_m":{"type":"array","items":{"type":"array","items":{"type":"number"}}},"shaft_marker_radius_m":{"type":"number"},)"
+    R"("cameras":{"type":"object","description":"camera -> {occluded: [marker index], out_of_view: [marker index], board_visible}"},)"
+    R"("board":{"type":"object","description":"pose_index, cols, rows, square_m, R (rows), t_m: x_world = R x_board + t"}}})";
+
+}  // namespace
+
+// ---- setup ----------------------------------------------------------------------------------
+
+// The devices of the plan, the associator and the safety monitor.
+Status Session::Impl::choose_devices() {
+  const Plan& plan = opts.plan;
+  const RigConfig& cfg = rig.config();
+  period_ns = static_cast<std::int64_t>(std::llround(cfg.control_period_s * 1e9));
+  std::vector<std::string> cam_names;
+  Associator::Options ao;
+  if (plan.protocol == Protocol::kHandHeld) {
+    cam_names = plan.hand_held.cameras;
+    trigger = rig.get<dev::Trigger>(cfg.first(DeviceKind::kTrigger)->name);
+    fsr = rig.get<dev::Fsr>(plan.hand_held.fsr);
+    ao.want_fsr = true;
+    HC_ASSIGN_OR_RETURN(SafetyLimits limits, combine_limits(cfg.workspace, cfg.max_force_n,
+                                                            cfg.stall_timeout_s, nullptr, nullptr));
+    safety = std::make_unique<SafetyMonitor>(limits);
+  } else if (plan.protocol == Protocol::kCalibration) {
+    const CalibrationPlan& p = plan.calibration;
+    cam_names = p.cameras;
+    trigger = rig.get<dev::Trigger>(p.trigger_device.empty() ? cfg.first(DeviceKind::kTrigger)->name
+                                                             : p.trigger_device);
+    HC_ASSIGN_OR_RETURN(SafetyLimits limits, combine_limits(cfg.workspace, cfg.max_force_n,
+                                                            cfg.stall_timeout_s, nullptr, nullptr));
+    safety = std::make_unique<SafetyMonitor>(limits);
+  } else {
+    const AutomatedPlan& p = plan.automated;
+    cam_names = p.cameras;
+    trigger = rig.get<dev::Trigger>(p.trigger_device);
+    ft = rig.get<dev::ForceTorque>(p.force_torque);
+    arm = rig.get<dev::Arm>(p.arm);
+    ao.want_ft = true;
+    HC_ASSIGN_OR_RETURN(SafetyLimits limits,
+                        combine_limits(cfg.workspace, cfg.max_force_n, cfg.stall_timeout_s,
+                                       &p.workspace, &p.max_force_n));
+    safety = std::make_unique<SafetyMonitor>(limits);
+  }
+  for (const std::string& c : cam_names) cameras.push_back(rig.get<dev::Camera>(c));
+  session_cameras = std::set<std::string>(cam_names.begin(), cam_names.end());
+  ao.cameras = cam_names;
+  assoc = std::make_unique<Associator>(ao);
+
+  used.clear();
+  if (trigger) used.push_back(trigger);
+  for (dev::Camera* c : cameras) used.push_back(c);
+  if (ft) used.push_back(ft);
+  if (fsr) used.push_back(fsr);
+  if (arm) used.push_back(arm);
+  return {};
+}
+
+Status Session::Impl::open_recording() {
+  // The file and its channels.
+  std::error_code ec;
+  std::filesystem::create_directories(opts.path.parent_path(), ec);
+  HC_ASSIGN_OR_RETURN(recorder, Recorder::open(opts.path, opts.recorder));
+  const auto meta = [](const dev::Device& d) {
+    return rec::StringMap{{"device", d.name()},
+                          {"kind", std::string(dev::to_string(d.kind()))},
+                          {"backend", d.backend()}};
+  };
+  const rec::StringMap session_meta{{"device", "session"}, {"kind", "session"}, {"backend", ""}};
+  if (trigger) {
+    const auto& s = session::trigger_edge_schema();
+    HC_ASSIGN_OR_RETURN(ch_edges,
+                        recorder->add_json_channel(session::trigger_topic(trigger->name()), s.name,
+                                                   s.json_schema, meta(*trigger)));
+  }
+  for (dev::Camera* c : cameras) {
+    rec::StringMap m = meta(*c);
+    const dev::CameraInfo info = c->camera_info();
+    m["width"] = std::to_string(info.width);
+    m["height"] = std::to_string(info.height);
+    m["format"] = std::string(dev::to_string(info.format));
+    m["trigger_mode"] = std::string(dev::to_string(info.trigger_mode));
+    HC_ASSIGN_OR_RETURN(std::uint16_t id,
+                        recorder->add_image_channel(session::camera_topic(c->name()), m));
+    ch_cams.push_back(id);
+  }
+  if (ft) {
+    const auto& s = session::wrench_sample_schema();
+    rec::StringMap m = meta(*ft);
+    m["counts_per_n"] = std::to_string(ft->calibration().counts_per_n);
+    m["counts_per_nm"] = std::to_string(ft->calibration().counts_per_nm);
+    m["sample_rate_hz"] = std::to_string(ft->sample_rate_hz());
+    HC_ASSIGN_OR_RETURN(ch_ft, recorder->add_json_channel(session::wrench_topic(ft->name()), s.name,
+                                                          s.json_schema, m));
+  }
+  if (fsr) {
+    const auto& s = session::fsr_sample_schema();
+    HC_ASSIGN_OR_RETURN(ch_fsr, recorder->add_json_channel(session::fsr_topic(fsr->name()), s.name,
+                                                           s.json_schema, meta(*fsr)));
+  }
+  if (arm) {
+    const auto& s = session::arm_state_schema();
+    HC_ASSIGN_OR_RETURN(ch_arm_state,
+                        recorder->add_json_channel(session::arm_state_topic(arm->name()), s.name,
+                                                   s.json_schema, meta(*arm)));
+    const auto& c = session::arm_command_schema();
+    HC_ASSIGN_OR_RETURN(ch_arm_cmd,
+                        recorder->add_json_channel(session::arm_command_topic(arm->name()), c.name,
+                                                   c.json_schema, meta(*arm)));
+  }
+  HC_ASSIGN_OR_RETURN(
+      ch_sync, recorder->add_json_channel(session::kSyncTopic, "hardcopy.SyncRecord", kSyncSchema,
+                                          session_meta));
+  HC_ASSIGN_OR_RETURN(ch_steps, recorder->add_json_channel(session::kStepsTopic, "hardcopy.Step",
+                                                           kStepSchema, session_meta));
+  HC_ASSIGN_OR_RETURN(ch_events, recorder->add_json_channel(session::kEventsTopic, "hardcopy.Event",
+                                                            kEventSchema, session_meta));
+  have_truth = rig.world() != nullptr;
+  if (have_truth) {
+    HC_ASSIGN_OR_RETURN(
+        ch_truth,
+        recorder->add_json_channel(
+            session::kGroundTruthTopic, "hardcopy.GroundTruth", kTruthSchema,
+            rec::StringMap{{"device", "world"}, {"kind", "ground_truth"}, {"backend", "sim"}}));
+  }
+  return {};
+}
+
+Status Session::Impl::write_opening_metadata() {
+  const Plan& plan = opts.plan;
+  const RigConfig& cfg = rig.config();
+  // Opening metadata: rig config, plan, specimen, software, calibration.
+  HC_RETURN_IF_ERROR(recorder->write_metadata_now(
+      rec::kMetadataRigConfig, {{"yaml", cfg.source_text}, {"source", cfg.source_name}}));
+  HC_RETURN_IF_ERROR(recorder->write_metadata_now(
+      rec::kMetadataPlan, {{"yaml", plan.source_text}, {"json", plan.to_json().dump()}}));
+  rec::StringMap specimen(plan.specimen.begin(), plan.specimen.end());
+  if (rig.world() != nullptr) specimen["simulated_specimen"] = rig.world()->specimen().name();
+  HC_RETURN_IF_ERROR(recorder->write_metadata_now(rec::kMetadataSpecimen, specimen));
+  HC_RETURN_IF_ERROR(recorder->write_metadata_now(
+      rec::kMetadataSoftware, {{"name", "hardcopy rigd"}, {"version", opts.software_version}}));
+  Json calib = Json::object();
+  if (ft)
+    calib[ft->name()] = {{"counts_per_n", ft->calibration().counts_per_n},
+                         {"counts_per_nm", ft->calibration().counts_per_nm}};
+  if (fsr) {
+    const dev::FsrCalibration c = fsr->calibration();
+    calib[fsr->name()] = {{"full_scale", c.full_scale},
+                          {"threshold", c.threshold},
+                          {"scale_n", c.scale_n},
+                          {"exponent", c.exponent}};
+  }
+  for (dev::Camera* c : cameras) {
+    const dev::CameraInfo i = c->camera_info();
+    calib[c->name()] = {{"width", i.width},
+                        {"height", i.height},
+                        {"format", dev::to_string(i.format)},
+                        {"exposure_s", i.exposure_s}};
+  }
+  HC_RETURN_IF_ERROR(
+      recorder->write_metadata_now(rec::kMetadataCalibration, {{"json", calib.dump()}}));
+  if (rig.world() != nullptr) {
+    // The true parameters of the session's simulated cameras (rig_daemon/session/topics.h).
+    Json sim_cams = Json::object();
+    for (const dev::sim::CameraRecord& r : rig.world()->cameras()) {
+      if (!session_cameras.count(r.name)) continue;
+      const dev::sim::PinholeCamera& c = r.camera;
+      sim_cams[r.name] = {{"width", c.width},
+                          {"height", c.height},
+                          {"fx", c.fx},
+                          {"fy", c.fy},
+                          {"cx", c.cx},
+                          {"cy", c.cy},
+                          {"distortion", c.distortion},
+                          {"R", mat_json(c.R_cam_world)},
+                          {"t_m", vec_json(c.t_cam_world)},
+                          {"center_m", vec_json(c.center_world())}};
+    }
+    HC_RETURN_IF_ERROR(
+        recorder->write_metadata_now(session::kMetadataSimCameras, {{"json", sim_cams.dump()}}));
+    if (plan.protocol == Protocol::kCalibration) {
+      const CalibrationPlan& p = plan.calibration;
+      dev::sim::BoardShow show;
+      show.spec.cols = p.board_cols;
+      show.spec.rows = p.board_rows;
+      show.spec.square_m = p.square_m;
+      show.spec.margin_squares = p.margin_squares;
+      dev::sim::BoardMotion motion;
+      motion.poses = p.poses;
+      motion.seed = p.seed;
+      motion.max_tilt_deg = p.max_tilt_deg;
+      const dev::sim::Specimen& spec = rig.world()->specimen();
+      const Eigen::Vector2d c = spec.footprint().center();
+      show.poses =
+          dev::sim::board_poses(show.spec, motion, Eigen::Vector3d(c.x(), c.y(), spec.top_z_m()));
+      show.dwell_ns = std::max<std::int64_t>(1, std::llround(p.dwell_s * 1e9));
+      Json poses = Json::array();
+      for (const dev::sim::BoardPose& b : show.poses)
+        poses.push_back({{"R", mat_json(b.R)}, {"t_m", vec_json(b.t)}});
+      const Json board{{"cols", p.board_cols},   {"rows", p.board_rows},
+                       {"square_m", p.square_m}, {"margin_squares", p.margin_squares},
+                       {"seed", p.seed},         {"poses", std::move(poses)}};
+      HC_RETURN_IF_ERROR(
+          recorder->write_metadata_now(session::kMetadataSimBoard, {{"json", board.dump()}}));
+      board_show = std::move(show);
+    }
+  }
+  return {};
+}
+
+Status Session::Impl::setup() {
+  HC_RETURN_IF_ERROR(choose_devices());
+  HC_RETURN_IF_ERROR(open_recording());
+  HC_RETURN_IF_ERROR(write_opening_metadata());
+  recorder->start();
+
+  if (have_truth) {
+    rig.world()->set_ground_truth_callback([this](const dev::sim::GroundTruth& t) {
+      Json j{{"host_ns", t.host_ns},
+             {"probe", pose_json(t.probe)},
+             {"indentation_m", t.indentation_m},
+             {"force_n", t.force_n}};
+      if (t.trigger_index) j["trigger_index"] = *t.trigger_index;
+      Json markers = Json::array();
+      for (const auto& m : t.markers_m) markers.push_back(vec_json(m));
+      j["markers_m"] = std::move(markers);
+      const dev::sim::ProbeGeometry& g = t.probe_geometry;
+      j["probe_tip_m"] = vec_json(g.tip_m);
+      j["probe_axis"] = vec_json(g.axis);
+      j["probe_radius_m"] = g.radius_m;
+      j["probe_shown"] = t.probe_shown;
+      j["shaft_markers_m"] = Json::array({vec_json(g.markers_m[0]), vec_json(g.markers_m[1])});
+      j["shaft_marker_radius_m"] = g.marker_radius_m;
+      Json cams = Json::object();
+      for (const dev::sim::CameraTruth& c : t.cameras) {
+        if (!session_cameras.count(c.camera)) continue;
+        cams[c.camera] = {{"occluded", c.occluded},
+                          {"out_of_view", c.out_of_view},
+                          {"board_visible", c.board_visible}};
+      }
+      j["cameras"] = std::move(cams);
+      if (t.board_pose_index) {
+        j["board"] = {{"pose_index", *t.board_pose_index}, {"cols", t.board_spec.cols},
+                      {"rows", t.board_spec.rows},         {"square_m", t.board_spec.square_m},
+                      {"R", mat_json(t.board_pose.R)},     {"t_m", vec_json(t.board_pose.t)}};
+      }
+      recorder->write(ch_truth, t.host_ns, t.host_ns,
+                      static_cast<std::uint32_t>(t.trigger_index.value_or(0)),
+                      rec::json_message(j));
+    });
+  }
+
+  // Start the devices (a device left in error by an earlier session is reset first).
+  // The trigger stays active from its first session on: its edge indices then count from the
+  // daemon's first session, the same numbering hardware-triggered cameras and triggered FSRs use
+  // for Frame/FsrSample::trigger_index (a re-activated simulated trigger would restart at 0 while
+  // the cameras keep counting).
+  for (dev::Device* d : used) {
+    if (d->state() == dev::DeviceState::kError) HC_RETURN_IF_ERROR(d->reset());
+    if (d == trigger && d->state() == dev::DeviceState::kActive) continue;
+    if (d->state() == dev::DeviceState::kActive) HC_RETURN_IF_ERROR(d->deactivate());
+    HC_RETURN_IF_ERROR(d->activate());
+  }
+  return {};
+}
+
+}  // namespace hc::rig
