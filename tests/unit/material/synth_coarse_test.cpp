@@ -6,23 +6,10 @@
 
 #include "hyperelastic_reference.h"
 #include "processing/material/synth.h"
-
-#if defined(__SANITIZE_ADDRESS__)
-#define HC_SYNTH_COARSE_ASAN 1
-#elif defined(__has_feature)
-#if __has_feature(address_sanitizer)
-#define HC_SYNTH_COARSE_ASAN 1
-#endif
-#endif
+#include "sanitizer.h"
 
 namespace hc::material {
 namespace {
-
-#if HC_SYNTH_COARSE_ASAN
-constexpr bool kUnderAddressSanitizer = true;
-#else
-constexpr bool kUnderAddressSanitizer = false;
-#endif
 
 // The 50 x 50 x 25 mm block, neo-Hookean E 60 kPa, a 10 mm sphere pushed to up to 3 N at
 // 9 placements spread over the top face (margins 15 %: probe centres between and on nodes).
@@ -59,8 +46,7 @@ TEST(SynthCoarse, SmallBlocksCompleteForEveryProbePlacement) {
 }
 
 TEST(SynthCoarse, LargerBlocksCompleteForEveryProbePlacement) {
-  if (kUnderAddressSanitizer)
-    GTEST_SKIP() << "reference solves on up to 5,184 tets; the Release stage runs them";
+  HC_SKIP_WHEN_SANITIZED("~10x slower: reference solves on up to 5,184 tets");
   synth_on(8, 8, 4);
   synth_on(12, 12, 6);
 }

@@ -12,23 +12,10 @@
 #include "processing/meshing/tetrahedralize.h"
 #include "processing/scene/contact_meshing.h"
 #include "processing/scene/scene.h"
-
-#if defined(__SANITIZE_ADDRESS__)
-#define HC_CONTACT_DEFAULTS_ASAN 1
-#elif defined(__has_feature)
-#if __has_feature(address_sanitizer)
-#define HC_CONTACT_DEFAULTS_ASAN 1
-#endif
-#endif
+#include "sanitizer.h"
 
 namespace hc::scene {
 namespace {
-
-#if HC_CONTACT_DEFAULTS_ASAN
-constexpr bool kUnderAddressSanitizer = true;
-#else
-constexpr bool kUnderAddressSanitizer = false;
-#endif
 
 // ANALYTIC_BENCHMARKS.md §2: Sneddon's exact rigid sphere, d = (a/2) ln((R+a)/(R−a)),
 // F = (E*/2) [(a² + R²) ln((R+a)/(R−a)) − 2 a R] (→ Hertz 4/3 E* √R d^(3/2)).
@@ -92,8 +79,7 @@ constexpr double kDefaultSettingsTolerance = 0.08;
 // Three sets each: the (0.5 MPa, 0.4, R 10 mm, d 0.5 mm: a 2.2 mm, Hertz 0.887 N) and two
 // others.
 TEST(ContactDefaults, SphereWithinEightPercentOfSneddon) {
-  if (kUnderAddressSanitizer)
-    GTEST_SKIP() << "~40k-tet contact solves; the Release stage runs them";
+  HC_SKIP_WHEN_SANITIZED("~10x slower: ~40k-tet contact solves");
   const Case cases[] = {{0.5e6, 0.4, 0.01, 5e-4}, {2e6, 0.3, 0.005, 2e-4}, {50e3, 0.25, 0.02, 1e-3}};
   for (const Case& c : cases) {
     const Eigen::Vector3d block = half_space_block(std::sqrt(c.r * c.d));
@@ -110,8 +96,7 @@ TEST(ContactDefaults, SphereWithinEightPercentOfSneddon) {
 }
 
 TEST(ContactDefaults, FlatPunchWithinEightPercentOfSneddon) {
-  if (kUnderAddressSanitizer)
-    GTEST_SKIP() << "~40k-tet contact solves; the Release stage runs them";
+  HC_SKIP_WHEN_SANITIZED("~10x slower: ~40k-tet contact solves");
   const Case cases[] = {{1e6, 0.3, 0.0025, 2.5e-5}, {0.2e6, 0.45, 0.005, 1e-4}, {3e6, 0.35, 0.002, 1e-5}};
   for (const Case& c : cases) {
     const Eigen::Vector3d block = half_space_block(c.r);
