@@ -8,10 +8,12 @@
 namespace hc::hyperelastic {
 namespace {
 
-class FemProbeContact final : public RigidProbe {
+// A processing/fem probe moved along its axis from its start pose: the part both contact rules
+// below share.
+class FemRigidProbe : public RigidProbe {
  public:
-  FemProbeContact(std::unique_ptr<fem::Probe> probe, double k)
-      : probe_(std::move(probe)), start_(probe_->pose()), k_(k) {}
+  explicit FemRigidProbe(std::unique_ptr<fem::Probe> probe)
+      : probe_(std::move(probe)), start_(probe_->pose()) {}
 
   void set_depth(double depth_m) override {
     depth_ = depth_m;
@@ -20,6 +22,19 @@ class FemProbeContact final : public RigidProbe {
   }
   double depth() const override { return depth_; }
   Eigen::Vector3d direction() const override { return probe_->direction(); }
+
+ protected:
+  std::unique_ptr<fem::Probe> probe_;
+
+ private:
+  Eigen::Isometry3d start_;
+  double depth_ = 0;
+};
+
+class FemProbeContact final : public FemRigidProbe {
+ public:
+  FemProbeContact(std::unique_ptr<fem::Probe> probe, double k)
+      : FemRigidProbe(std::move(probe)), k_(k) {}
 
   double node_energy(const Eigen::Vector3d& p, Eigen::Vector3d* grad,
                      Eigen::Matrix3d* hess) const override {
@@ -32,25 +47,14 @@ class FemProbeContact final : public RigidProbe {
   }
 
  private:
-  std::unique_ptr<fem::Probe> probe_;
-  Eigen::Isometry3d start_;
   double k_;
-  double depth_ = 0;
 };
 
-class FemSurfaceContact final : public RigidProbe {
+class FemSurfaceContact final : public FemRigidProbe {
  public:
   FemSurfaceContact(std::unique_ptr<fem::Probe> probe, const fem::ContactSurface& surface,
                     std::vector<double> k)
-      : probe_(std::move(probe)), start_(probe_->pose()), surface_(surface), k_(std::move(k)) {}
-
-  void set_depth(double depth_m) override {
-    depth_ = depth_m;
-    probe_->set_pose(start_);
-    probe_->advance(depth_m);
-  }
-  double depth() const override { return depth_; }
-  Eigen::Vector3d direction() const override { return probe_->direction(); }
+      : FemRigidProbe(std::move(probe)), surface_(surface), k_(std::move(k)) {}
 
   double energy(const Eigen::VectorXd& x, Eigen::VectorXd* grad,
                 std::vector<Eigen::Triplet<double>>* hessian, bool /*project*/) const override {
@@ -86,11 +90,8 @@ class FemSurfaceContact final : public RigidProbe {
   }
 
  private:
-  std::unique_ptr<fem::Probe> probe_;
-  Eigen::Isometry3d start_;
   fem::ContactSurface surface_;
   std::vector<double> k_;
-  double depth_ = 0;
 };
 
 }  // namespace
