@@ -32,12 +32,7 @@ class PhidgetFsr final : public devices::Fsr {
     node.optional("serial", serial_);
     node.optional("sensor", sensor_, Bounds::between(0, phidget::kSensors - 1));
     node.optional("rate_hz", rate_hz_, Bounds{0.0, 1000.0, true, false});
-    if (auto c = node.find("calibration")) {
-      c->optional("full_scale", calibration_.full_scale, Bounds::positive());
-      c->optional("threshold", calibration_.threshold, Bounds{0.0, 1.0, false, true});
-      c->optional("scale_n", calibration_.scale_n, Bounds::positive());
-      c->optional("exponent", calibration_.exponent, Bounds::positive());
-    }
+    read_calibration(node, &calibration_);
     return node.status();
   }
 

@@ -300,6 +300,15 @@ Result<std::size_t> Trigger::read(std::vector<TriggerEdge>& out, Duration timeou
   return n;
 }
 
+void Fsr::read_calibration(ConfigNode& node, FsrCalibration* calibration) {
+  if (std::optional<ConfigNode> c = node.find("calibration")) {
+    c->optional("full_scale", calibration->full_scale, Bounds::positive());
+    c->optional("threshold", calibration->threshold, Bounds{0.0, 1.0, false, true});
+    c->optional("scale_n", calibration->scale_n, Bounds::positive());
+    c->optional("exponent", calibration->exponent, Bounds::positive());
+  }
+}
+
 Result<std::size_t> Fsr::read(std::vector<FsrSample>& out, Duration timeout) {
   HC_RETURN_IF_ERROR(check_active("read"));
   Result<std::size_t> n = on_read(out, timeout);

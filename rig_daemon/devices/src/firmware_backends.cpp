@@ -253,12 +253,7 @@ class FirmwareFsr final : public Fsr {
   Status on_configure(ConfigNode node) override {
     board_.read(node);
     node.optional("channel", channel_, Bounds::between(0, 7));
-    if (std::optional<ConfigNode> c = node.find("calibration")) {
-      c->optional("full_scale", cal_.full_scale, Bounds::positive());
-      c->optional("threshold", cal_.threshold, Bounds{0.0, 1.0, false, true});
-      c->optional("scale_n", cal_.scale_n, Bounds::positive());
-      c->optional("exponent", cal_.exponent, Bounds::positive());
-    }
+    read_calibration(node, &cal_);
     return node.status();
   }
   Status on_activate() override {

@@ -306,12 +306,7 @@ class ReplayFsr final : public Fsr {
 
  protected:
   Status on_configure(ConfigNode node) override {
-    if (std::optional<ConfigNode> c = node.find("calibration")) {
-      c->optional("full_scale", cal_.full_scale, Bounds::positive());
-      c->optional("threshold", cal_.threshold, Bounds{0.0, 1.0, false, true});
-      c->optional("scale_n", cal_.scale_n, Bounds::positive());
-      c->optional("exponent", cal_.exponent, Bounds::positive());
-    }
+    read_calibration(node, &cal_);
     HC_RETURN_IF_ERROR(binding_.bind(context(), node, kKind));
     const double span_s = (binding_.session->end_ns() - binding_.session->start_ns()) * 1e-9;
     rate_hz_ = span_s > 0.0 ? binding_.stream->messages / span_s : 0.0;

@@ -72,12 +72,7 @@ class SimFsr final : public Fsr {
     double late_s = 0.005;
     node.optional("late_after_s", late_s, Bounds::positive());
     late_ns_ = seconds_to_ns(late_s);
-    if (std::optional<ConfigNode> c = node.find("calibration")) {
-      c->optional("full_scale", cal_.full_scale, Bounds::positive());
-      c->optional("threshold", cal_.threshold, Bounds{0.0, 1.0, false, true});
-      c->optional("scale_n", cal_.scale_n, Bounds::positive());
-      c->optional("exponent", cal_.exponent, Bounds::positive());
-    }
+    read_calibration(node, &cal_);
     return node.status();
   }
   Status on_activate() override {

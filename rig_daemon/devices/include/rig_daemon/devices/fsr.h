@@ -25,6 +25,9 @@ class Fsr : public Device {
 
  protected:
   virtual Result<std::size_t> on_read(std::vector<FsrSample>& out, Duration timeout) = 0;
+  // Reads the config's optional `calibration` map {full_scale, threshold, scale_n, exponent} over
+  // *calibration (keys left out keep their values); errors are collected in `node`.
+  static void read_calibration(ConfigNode& node, FsrCalibration* calibration);
 };
 
 }  // namespace hc::devices
