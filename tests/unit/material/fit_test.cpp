@@ -16,18 +16,7 @@ using testing::box_mesh;
 using testing::simulate_example;
 using testing::top_nodes_near;
 
-// A 4×4×2-cube block of 40 × 40 × 20 mm (192 tets) with a soft top layer over a stiff bottom.
-struct TwoLayer {
-  TetMesh mesh = box_mesh(4, 4, 2, 0.04, 0.04, 0.02);
-  std::vector<fem::LambdaAlpha> truth;
-  TwoLayer() {
-    for (Eigen::Index e = 0; e < mesh.num_tets(); ++e) {
-      double z = 0;
-      for (int k = 0; k < 4; ++k) z += mesh.nodes(mesh.tets(e, k), 2) / 4;
-      truth.push_back(fem::lambda_alpha_from_youngs_poisson(z > 0.01 ? 50e3 : 200e3, 0.3));
-    }
-  }
-};
+using TwoLayer = testing::TwoLayerBlock;
 
 TEST(ExampleProblem, JacobianMatchesCentralDifferences) {
   // Appendix A's analytic Jacobian vs central differences, relative error <= 1e-6 (issue 3).

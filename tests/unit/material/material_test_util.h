@@ -97,6 +97,24 @@ inline Example simulate_example(const TetMesh& mesh, const std::vector<fem::Lamb
   return ex;
 }
 
+// A 4×4×2-cube block of 40 × 40 × 20 mm (192 tets): a soft top layer (50 kPa) over a stiff
+// bottom (200 kPa), ν 0.3; example() presses it at (x, y) with `force` on the top nodes within
+// 11 mm.
+struct TwoLayerBlock {
+  TetMesh mesh = box_mesh(4, 4, 2, 0.04, 0.04, 0.02);
+  std::vector<fem::LambdaAlpha> truth;
+  TwoLayerBlock() {
+    for (Eigen::Index e = 0; e < mesh.num_tets(); ++e) {
+      double z = 0;
+      for (int k = 0; k < 4; ++k) z += mesh.nodes(mesh.tets(e, k), 2) / 4;
+      truth.push_back(fem::lambda_alpha_from_youngs_poisson(z > 0.01 ? 50e3 : 200e3, 0.3));
+    }
+  }
+  Example example(double x, double y, const Eigen::Vector3d& force) const {
+    return simulate_example(mesh, truth, top_nodes_near(mesh, x, y, 0.011), force);
+  }
+};
+
 // Stiffening reference: lambda, alpha grow with compression (eps_zz < 0) of each element.
 struct StiffeningReference {
   TetMesh mesh;

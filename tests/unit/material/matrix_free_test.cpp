@@ -13,25 +13,7 @@
 namespace hc::material {
 namespace {
 
-using testing::box_mesh;
-using testing::simulate_example;
-using testing::top_nodes_near;
-
-// A 4×4×2-cube block of 40 × 40 × 20 mm (192 tets), soft over stiff, pressed off-centre.
-struct Block {
-  TetMesh mesh = box_mesh(4, 4, 2, 0.04, 0.04, 0.02);
-  std::vector<fem::LambdaAlpha> truth;
-  Block() {
-    for (Eigen::Index e = 0; e < mesh.num_tets(); ++e) {
-      double z = 0;
-      for (int k = 0; k < 4; ++k) z += mesh.nodes(mesh.tets(e, k), 2) / 4;
-      truth.push_back(fem::lambda_alpha_from_youngs_poisson(z > 0.01 ? 50e3 : 200e3, 0.3));
-    }
-  }
-  Example example(double x, double y, const Eigen::Vector3d& force) const {
-    return simulate_example(mesh, truth, top_nodes_near(mesh, x, y, 0.011), force);
-  }
-};
+using Block = testing::TwoLayerBlock;  // pressed off-centre in the tests below
 
 TEST(MatrixFree, JacobianProductsMatchTheDenseJacobianAndFiniteDifferences) {
   Block b;
