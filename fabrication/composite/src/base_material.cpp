@@ -11,6 +11,7 @@ namespace hc::composite {
 namespace {
 
 constexpr double kSqrt2 = 1.4142135623730951;
+constexpr double kMaxConditionInverse = 1e-9;
 
 // K / mu for a Poisson's ratio: K / mu = 2 (1 + nu) / (3 (1 - 2 nu)), increasing in nu.
 double bulk_to_shear(double nu) { return 2.0 * (1.0 + nu) / (3.0 * (1.0 - 2.0 * nu)); }
@@ -49,15 +50,21 @@ Eigen::VectorXd project_transverse(const Eigen::VectorXd& p, const FeasibilityLi
   // b = E11 - E12 (and the xy shear, b/2), the span of (1,1,0)/sqrt2 and (0,0,1) with the block
   // [[a, c], [c, d]], a = E11 + E12, c = sqrt2 E13, d = E33, and the xz/yz shears E44.
   double a = p(0) + p(1);
-  double b = std::max(p(0) - p(1), f);
   double c = kSqrt2 * p(2);
   double d = p(3);
-  const double e44 = std::max(p(4), f);
   Eigen::Matrix2d m;
   m << a, c, c, d;
   Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d> es(m);
-  if (es.eigenvalues().minCoeff() < f) {
-    const Eigen::Vector2d lam = es.eigenvalues().cwiseMax(f);
+  // Every eigenvalue also stays above a tiny fraction of the largest, so the stiffness keeps a
+  // condition number that double precision resolves (1e9; printed materials stay below 1e4):
+  // otherwise a stiffness with one modulus of 1e30 Pa is positive definite only on paper.
+  const double largest = std::max({std::abs(p(0) - p(1)), std::abs(p(4)),
+                                   es.eigenvalues().cwiseAbs().maxCoeff()});
+  const double floor = std::max(f, kMaxConditionInverse * largest);
+  const double b = std::max(p(0) - p(1), floor);
+  const double e44 = std::max(p(4), floor);
+  if (es.eigenvalues().minCoeff() < floor) {
+    const Eigen::Vector2d lam = es.eigenvalues().cwiseMax(floor);
     m = es.eigenvectors() * lam.asDiagonal() * es.eigenvectors().transpose();
     a = m(0, 0);
     c = 0.5 * (m(0, 1) + m(1, 0));

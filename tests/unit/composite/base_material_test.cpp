@@ -73,6 +73,25 @@ TEST(Projection, TransverseKeepsStructureAndPositiveDefiniteness) {
   }
 }
 
+// A modulus of 1e30 Pa beside ones of 1e5 Pa (found by fuzz_base_material): the projection keeps
+// the stiffness's condition number within 1e9, so double precision still finds it positive
+// definite; ordinary materials (condition numbers below 1e4) do not move.
+TEST(Projection, TransverseStaysPositiveDefiniteInDoublePrecision) {
+  FeasibilityLimits l;
+  l.min_modulus_pa = 1e2;
+  for (const double huge : {1e12, 1e20, 4.2e30, 1e300}) {
+    const Eigen::VectorXd q =
+        project_feasible(BaseModel::kTransverse, vec({huge, 1e5, 1e5, 9e5, 1.2e5}), l);
+    const Eigen::VectorXd ev =
+        Eigen::SelfAdjointEigenSolver<Matrix6d>(elasticity_matrix(BaseModel::kTransverse, q))
+            .eigenvalues();
+    EXPECT_GT(ev.minCoeff(), 0) << huge;
+    EXPECT_LE(ev.maxCoeff() / ev.minCoeff(), 1.01e9) << huge;
+  }
+  const Eigen::VectorXd fibre = vec({4e5, 1e5, 1e5, 9e5, 1.2e5});
+  EXPECT_EQ(project_feasible(BaseModel::kTransverse, fibre, l), fibre);
+}
+
 // Eq. 5.6 in Eq. 4.1 order, and isotropy as its special case: E11 = lambda + 2 mu, E12 = E13 =
 // lambda, E33 = E11, E44 = mu reproduce the isotropic matrix.
 TEST(Elasticity, TransverseReducesToIsotropic) {
