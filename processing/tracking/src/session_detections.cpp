@@ -97,20 +97,13 @@ RigProbe probe_of_rig_config(const std::string& yaml) {
   return out;
 }
 
-Result<SessionDetections> read_session_detections(const std::filesystem::path& session,
-                                                  const calib::RigCalibration& calibration,
-                                                  const SessionReadOptions& options) {
-  const auto t_start = Clock::now();
-  HC_RETURN_IF_ERROR(options.blobs.validate());
-  if (options.color) HC_RETURN_IF_ERROR(options.color->validate());
-  if (!(options.shaft_marker_area_ratio > 1.0) || !(options.shaft_marker_max_area_px >= 0.0))
-    return invalid_argument("shaft_marker_area_ratio must be > 1, shaft_marker_max_area_px >= 0");
-  Result<recording::McapReader> opened = recording::McapReader::open(session);
-  if (!opened.ok()) return invalid_argument(opened.status().to_string());
-  const recording::McapReader& reader = *opened;
-  const std::string name = session.filename().string();
+namespace {
 
-  // Cameras: every foxglove.RawImage channel named /<camera>/image.
+// Cameras: every foxglove.RawImage channel named /<camera>/image, each in the calibration and
+// each calibrated camera in the session; at least two. Into out->cameras, in calibration order.
+Status match_session_cameras(const recording::McapReader& reader,
+                             const calib::RigCalibration& calibration, const std::string& name,
+                             SessionDetections* out) {
   std::set<std::string> session_cameras;
   for (const auto& [id, ch] : reader.channels()) {
     auto s = reader.schemas().find(ch.schema_id);
@@ -124,23 +117,26 @@ Result<SessionDetections> read_session_detections(const std::filesystem::path& s
   if (session_cameras.empty())
     return invalid_argument(
         fmt::format("{}: the session has no camera channel (/<camera>/image)", name));
-  SessionDetections out;
   for (const calib::CameraModel& c : calibration.cameras) {
     if (!session_cameras.count(c.name))
       return invalid_argument(
           fmt::format("{}: calibration camera '{}' has no channel in the session (cameras: {})",
                       name, c.name, fmt::join(session_cameras, ", ")));
-    out.cameras.push_back(c);
+    out->cameras.push_back(c);
   }
   for (const std::string& s : session_cameras)
     if (calibration.find(s) == nullptr)
       return invalid_argument(
           fmt::format("{}: session camera '{}' is not in the calibration", name, s));
-  if (out.cameras.size() < 2)
+  if (out->cameras.size() < 2)
     return invalid_argument(fmt::format("{}: tracking needs at least 2 calibrated cameras", name));
-  const std::size_t nc = out.cameras.size();
+  return {};
+}
 
-  // Image sizes from the session's calibration metadata (checked again on every frame).
+// The session's metadata: the rig config's probe, and image sizes from its calibration record
+// (checked again on every frame).
+Status read_session_metadata(const recording::McapReader& reader, const std::string& name,
+                             SessionDetections* out) {
   Result<std::vector<recording::Metadata>> metadata = reader.read_metadata();
   if (!metadata.ok()) return invalid_argument(metadata.status().to_string());
   for (const recording::Metadata& m : *metadata) {
@@ -148,8 +144,8 @@ Result<SessionDetections> read_session_detections(const std::filesystem::path& s
       auto it = m.metadata.find("yaml");
       if (it != m.metadata.end()) {
         const RigProbe probe = probe_of_rig_config(it->second);
-        out.shaft_marker_distances_m = probe.shaft_marker_distances_m;
-        out.probe_radius_m = probe.radius_m;
+        out->shaft_marker_distances_m = probe.shaft_marker_distances_m;
+        out->probe_radius_m = probe.radius_m;
       }
       continue;
     }
@@ -158,7 +154,7 @@ Result<SessionDetections> read_session_detections(const std::filesystem::path& s
     if (it == m.metadata.end()) continue;
     const Json j = Json::parse(it->second, nullptr, false);
     if (j.is_discarded() || !j.is_object()) continue;
-    for (const calib::CameraModel& c : out.cameras) {
+    for (const calib::CameraModel& c : out->cameras) {
       if (!j.contains(c.name) || !j[c.name].is_object()) continue;
       int w = 0, h = 0;
       if (get_int(j[c.name], "width", w) && get_int(j[c.name], "height", h) &&
@@ -168,23 +164,50 @@ Result<SessionDetections> read_session_detections(const std::filesystem::path& s
                         name, c.name, w, h, c.width, c.height));
     }
   }
+  return {};
+}
 
-  // The JSON channels.
-  const auto t_json = Clock::now();
-  struct Sync {
-    std::int64_t edge_ns = 0;
-    Eigen::Vector3d force = Eigen::Vector3d::Zero();
-    bool has_force = false;
-  };
+struct Sync {
+  std::int64_t edge_ns = 0;
+  Eigen::Vector3d force = Eigen::Vector3d::Zero();
+  bool has_force = false;
+};
+
+// The session's JSON records: sync (by trigger index), steps, ground truth (by trigger index).
+struct JsonRecords {
   std::map<std::uint64_t, Sync> sync;
   std::vector<SessionStep> steps;
   std::map<std::uint64_t, Json> truth;
+};
+
+// A step record: its first trigger index, location/level/step and the arm's pose.
+Status parse_step_record(const Json& j, const std::string& name, SessionStep* st) {
+  if (!j.contains("trigger_indices") || !j["trigger_indices"].is_array() ||
+      j["trigger_indices"].empty() || !j["trigger_indices"][0].is_number_integer())
+    return invalid_argument(fmt::format("{}: step record without trigger_indices", name));
+  st->trigger_index = j["trigger_indices"][0].get<std::uint64_t>();
+  get_int(j, "location", st->location);
+  get_int(j, "level", st->level);
+  get_int(j, "step", st->step);
+  if (j.contains("pose") && j["pose"].is_object()) {
+    const Json& p = j["pose"];
+    if (p.contains("x_m") && p["x_m"].is_number() && p.contains("y_m") && p["y_m"].is_number() &&
+        p.contains("z_m") && p["z_m"].is_number())
+      st->probe_tip_m =
+          Eigen::Vector3d(p["x_m"].get<double>(), p["y_m"].get<double>(), p["z_m"].get<double>());
+  }
+  return {};
+}
+
+Result<JsonRecords> read_json_records(const recording::McapReader& reader,
+                                      const std::string& name) {
+  JsonRecords rec;
   Status bad;
   recording::ReadOptions ro;
   ro.topics = {std::string(session::kSyncTopic), std::string(session::kStepsTopic),
                std::string(session::kGroundTruthTopic)};
   ro.order = recording::ReadOrder::kLogTime;
-  Status read = reader.read_messages(ro, [&](const recording::MessageEvent& e) {
+  const Status read = reader.read_messages(ro, [&](const recording::MessageEvent& e) {
     Result<Json> j = recording::parse_json_message(e.message.data);
     if (!j.ok() || !j->is_object()) {
       bad = invalid_argument(fmt::format("{}: {} message {} is not a JSON object", name,
@@ -201,55 +224,80 @@ Result<SessionDetections> read_session_detections(const std::filesystem::path& s
         return false;
       }
       s.has_force = get_vec3(*j, "force_n", s.force);
-      sync[index] = s;
+      rec.sync[index] = s;
     } else if (topic == session::kStepsTopic) {
       SessionStep st;
-      if (!j->contains("trigger_indices") || !(*j)["trigger_indices"].is_array() ||
-          (*j)["trigger_indices"].empty() || !(*j)["trigger_indices"][0].is_number_integer()) {
-        bad = invalid_argument(fmt::format("{}: step record without trigger_indices", name));
-        return false;
-      }
-      st.trigger_index = (*j)["trigger_indices"][0].get<std::uint64_t>();
-      get_int(*j, "location", st.location);
-      get_int(*j, "level", st.level);
-      get_int(*j, "step", st.step);
-      if (j->contains("pose") && (*j)["pose"].is_object()) {
-        const Json& p = (*j)["pose"];
-        if (p.contains("x_m") && p["x_m"].is_number() && p.contains("y_m") &&
-            p["y_m"].is_number() && p.contains("z_m") && p["z_m"].is_number())
-          st.probe_tip_m = Eigen::Vector3d(p["x_m"].get<double>(), p["y_m"].get<double>(),
-                                           p["z_m"].get<double>());
-      }
-      steps.push_back(std::move(st));
+      bad = parse_step_record(*j, name, &st);
+      if (!bad.ok()) return false;
+      rec.steps.push_back(std::move(st));
     } else {
       std::uint64_t index = 0;
-      if (get_int(*j, "trigger_index", index)) truth[index] = std::move(*j);
+      if (get_int(*j, "trigger_index", index)) rec.truth[index] = std::move(*j);
     }
     return true;
   });
   if (!read.ok()) return invalid_argument(read.to_string());
   HC_RETURN_IF_ERROR(bad);
-  if (sync.empty())
+  if (rec.sync.empty())
     return invalid_argument(fmt::format("{}: no /session/sync records (no trigger edges)", name));
+  return rec;
+}
+
+// An array of 3-vectors (`key` of a ground-truth record) appended to *out; absent is fine.
+Status read_truth_points(const Json& t, const char* key, const std::string& name,
+                         std::vector<Eigen::Vector3d>* out) {
+  if (!t.contains(key) || !t[key].is_array()) return {};
+  for (const Json& m : t[key]) {
+    if (!m.is_array() || m.size() != 3 || !m[0].is_number() || !m[1].is_number() ||
+        !m[2].is_number())
+      return invalid_argument(fmt::format("{}: ground truth {} malformed", name, key));
+    out->emplace_back(m[0].get<double>(), m[1].get<double>(), m[2].get<double>());
+  }
+  return {};
+}
+
+// A step's ground truth: markers, probe tip and axis, shaft markers, occluded markers per camera.
+Status read_step_truth(const Json& t, const std::string& name,
+                       const std::vector<calib::CameraModel>& cameras, SessionStep* st) {
+  if (!t.contains("markers_m") || !t["markers_m"].is_array()) return {};
+  HC_RETURN_IF_ERROR(read_truth_points(t, "markers_m", name, &st->truth_markers_m));
+  Eigen::Vector3d v;
+  if (get_vec3(t, "probe_tip_m", v)) st->truth_probe_tip_m = v;
+  if (get_vec3(t, "probe_axis", v)) st->truth_probe_axis = v;
+  HC_RETURN_IF_ERROR(read_truth_points(t, "shaft_markers_m", name, &st->truth_shaft_markers_m));
+  if (t.contains("cameras") && t["cameras"].is_object()) {
+    st->truth_occluded.resize(cameras.size());
+    for (std::size_t c = 0; c < cameras.size(); ++c) {
+      const Json& cams = t["cameras"];
+      if (!cams.contains(cameras[c].name)) continue;
+      const Json& cj = cams[cameras[c].name];
+      if (cj.is_object() && cj.contains("occluded") && cj["occluded"].is_array())
+        for (const Json& i : cj["occluded"])
+          if (i.is_number_unsigned()) st->truth_occluded[c].push_back(i.get<std::uint32_t>());
+    }
+  }
+  return {};
+}
+
+// The steps to track (one per sync record when the session has no step records), each with its
+// trigger edge, force and ground truth, and empty per-camera detections.
+Result<std::vector<SessionStep>> session_steps(JsonRecords rec, const std::string& name,
+                                               const std::vector<calib::CameraModel>& cameras,
+                                               std::size_t max_steps) {
+  std::vector<SessionStep> steps = std::move(rec.steps);
   if (steps.empty()) {
-    for (const auto& [index, s] : sync) {
+    for (const auto& [index, s] : rec.sync) {
       SessionStep st;
       st.trigger_index = index;
       steps.push_back(std::move(st));
     }
   }
-  if (options.max_steps > 0 && steps.size() > options.max_steps) steps.resize(options.max_steps);
-  std::vector<std::int64_t> edge_times;
-  std::vector<std::uint64_t> edge_index;
-  for (const auto& [index, s] : sync) {
-    edge_times.push_back(s.edge_ns);
-    edge_index.push_back(index);
-  }
-  std::map<std::uint64_t, std::size_t> step_of_trigger;
+  if (max_steps > 0 && steps.size() > max_steps) steps.resize(max_steps);
+  const std::size_t nc = cameras.size();
   for (std::size_t k = 0; k < steps.size(); ++k) {
     SessionStep& st = steps[k];
-    auto s = sync.find(st.trigger_index);
-    if (s == sync.end())
+    auto s = rec.sync.find(st.trigger_index);
+    if (s == rec.sync.end())
       return invalid_argument(fmt::format("{}: step {} names trigger {} with no sync record", name,
                                           k, st.trigger_index));
     st.edge_host_ns = s->second.edge_ns;
@@ -258,130 +306,138 @@ Result<SessionDetections> read_session_detections(const std::filesystem::path& s
     st.detections.assign(nc, {});
     st.shaft_detections.assign(nc, {});
     st.frames_found.assign(nc, 0);
-    step_of_trigger[st.trigger_index] = k;
-    auto t = truth.find(st.trigger_index);
-    if (t != truth.end() && t->second.contains("markers_m") && t->second["markers_m"].is_array()) {
-      for (const Json& m : t->second["markers_m"]) {
-        if (!m.is_array() || m.size() != 3 || !m[0].is_number() || !m[1].is_number() ||
-            !m[2].is_number())
-          return invalid_argument(fmt::format("{}: ground truth markers_m malformed", name));
-        st.truth_markers_m.emplace_back(m[0].get<double>(), m[1].get<double>(), m[2].get<double>());
-      }
-      Eigen::Vector3d v;
-      if (get_vec3(t->second, "probe_tip_m", v)) st.truth_probe_tip_m = v;
-      if (get_vec3(t->second, "probe_axis", v)) st.truth_probe_axis = v;
-      if (t->second.contains("shaft_markers_m") && t->second["shaft_markers_m"].is_array())
-        for (const Json& m : t->second["shaft_markers_m"]) {
-          if (!m.is_array() || m.size() != 3 || !m[0].is_number() || !m[1].is_number() ||
-              !m[2].is_number())
-            return invalid_argument(
-                fmt::format("{}: ground truth shaft_markers_m malformed", name));
-          st.truth_shaft_markers_m.emplace_back(m[0].get<double>(), m[1].get<double>(),
-                                                m[2].get<double>());
-        }
-      if (t->second.contains("cameras") && t->second["cameras"].is_object()) {
-        st.truth_occluded.resize(nc);
-        for (std::size_t c = 0; c < nc; ++c) {
-          const Json& cams = t->second["cameras"];
-          if (!cams.contains(out.cameras[c].name)) continue;
-          const Json& cj = cams[out.cameras[c].name];
-          if (cj.is_object() && cj.contains("occluded") && cj["occluded"].is_array())
-            for (const Json& i : cj["occluded"])
-              if (i.is_number_unsigned()) st.truth_occluded[c].push_back(i.get<std::uint32_t>());
-        }
-      }
-    }
+    if (auto t = rec.truth.find(st.trigger_index); t != rec.truth.end())
+      HC_RETURN_IF_ERROR(read_step_truth(t->second, name, cameras, &st));
   }
-  out.has_truth = !steps.empty() && !steps.front().truth_markers_m.empty();
-  out.times.decode_s += seconds_since(t_json);
+  return steps;
+}
 
-  // Frames: stream the camera channels, keep the frame after each step's edge, detect in batches.
-  std::map<std::string, std::size_t> camera_of_topic;
-  std::vector<std::string> topics;
-  for (std::size_t c = 0; c < nc; ++c) {
-    topics.push_back(session::camera_topic(out.cameras[c].name));
-    camera_of_topic[topics.back()] = c;
+// Marker detection in batches of frames on TBB workers while the reading thread decodes the next
+// batch. Each frame's dots are split into specimen markers and the larger shaft markers.
+class BatchDetector {
+ public:
+  BatchDetector(const SessionReadOptions& options, const std::string& name,
+                const std::vector<calib::CameraModel>& cameras, std::vector<SessionStep>* steps)
+      : options_(options), name_(name), cameras_(cameras), steps_(*steps), blobs_(options.blobs),
+        color_(options.color) {
+    // Detected up to the shaft markers' size, then split by area (see SessionReadOptions).
+    blobs_.max_area_px = std::max(blobs_.max_area_px, options.shaft_marker_max_area_px);
+    if (color_) color_->max_area_px = std::max(color_->max_area_px, options.shaft_marker_max_area_px);
   }
-  std::optional<tbb::global_control> limit;
-  if (options.threads > 0)
-    limit.emplace(tbb::global_control::max_allowed_parallelism,
-                  static_cast<std::size_t>(options.threads));
-  // Decoding (this thread) overlaps detection (TBB workers): while one batch of frames is being
-  // detected, the next is decoded. detection_s sums the per-frame detection times (CPU-seconds).
-  // Detected up to the shaft markers' size, then split by area (see SessionReadOptions).
-  markers::BlobOptions blobs = options.blobs;
-  blobs.max_area_px = std::max(blobs.max_area_px, options.shaft_marker_max_area_px);
-  std::optional<markers::ColorDotOptions> color = options.color;
-  if (color) color->max_area_px = std::max(color->max_area_px, options.shaft_marker_max_area_px);
-  std::vector<PendingFrame> batch, running;
-  std::vector<Result<std::vector<markers::Dot>>> running_results;
-  constexpr std::size_t kBatch = 6;
-  Status detect_error;
-  std::atomic<std::int64_t> detect_ns{0};
-  tbb::task_group group;
-  double wait_s = 0;  // this thread blocked on detection
-  const auto collect = [&] {
+  ~BatchDetector() { collect(); }  // never leave a task running on the frames it holds
+
+  void add(PendingFrame frame) {
+    batch_.push_back(std::move(frame));
+    if (batch_.size() >= kBatch) flush();
+  }
+  // Waits for the running batch and starts the pending one.
+  void flush() {
+    collect();
+    running_.swap(batch_);
+    results_.assign(running_.size(), Result<std::vector<markers::Dot>>(internal_error("not run")));
+    group_.run([this] {
+      tbb::parallel_for(std::size_t{0}, running_.size(), [this](std::size_t i) {
+        const auto t0 = Clock::now();
+        const recording::RawImage& im = running_[i].image;
+        markers::ImageView v{
+            static_cast<int>(im.width), static_cast<int>(im.height),
+            static_cast<std::ptrdiff_t>(im.step),
+            im.encoding == "rgb8" ? markers::PixelFormat::kRgb8 : markers::PixelFormat::kMono8,
+            im.data.data()};
+        results_[i] = options_.color ? markers::detect_color_dots(v, *color_)
+                                     : markers::detect_blobs(v, blobs_);
+        detect_ns_ +=
+            std::chrono::duration_cast<std::chrono::nanoseconds>(Clock::now() - t0).count();
+      });
+    });
+  }
+  // Waits for the running batch and files its dots under their steps.
+  void collect() {
     const auto tw = Clock::now();
-    group.wait();
-    wait_s += seconds_since(tw);
-    for (std::size_t i = 0; i < running.size(); ++i) {
-      if (!running_results[i].ok()) {
-        detect_error = running_results[i].status().with_context(
-            fmt::format("{}: camera '{}'", name, out.cameras[running[i].camera].name));
+    group_.wait();
+    wait_s_ += seconds_since(tw);
+    for (std::size_t i = 0; i < running_.size(); ++i) {
+      if (!results_[i].ok()) {
+        error_ = results_[i].status().with_context(
+            fmt::format("{}: camera '{}'", name_, cameras_[running_[i].camera].name));
         continue;
       }
-      SessionStep& st = steps[running[i].step];
-      auto& dets = st.detections[running[i].camera];
-      auto& shaft = st.shaft_detections[running[i].camera];
-      const std::vector<markers::Dot>& dots = *running_results[i];
-      double big = options.color ? options.color->max_area_px : options.blobs.max_area_px;
+      SessionStep& st = steps_[running_[i].step];
+      auto& dets = st.detections[running_[i].camera];
+      auto& shaft = st.shaft_detections[running_[i].camera];
+      const std::vector<markers::Dot>& dots = *results_[i];
+      double big = options_.color ? options_.color->max_area_px : options_.blobs.max_area_px;
       if (dots.size() >= 10) {
         std::vector<double> areas;
         for (const markers::Dot& d : dots) areas.push_back(d.area_px);
         std::nth_element(areas.begin(),
                          areas.begin() + static_cast<std::ptrdiff_t>(areas.size() / 2),
                          areas.end());
-        big = std::min(big, options.shaft_marker_area_ratio * areas[areas.size() / 2]);
+        big = std::min(big, options_.shaft_marker_area_ratio * areas[areas.size() / 2]);
       }
       for (const markers::Dot& d : dots) (d.area_px > big ? shaft : dets).push_back(d.center_px);
     }
-    running.clear();
-    running_results.clear();
-  };
-  const auto flush = [&] {
-    collect();
-    running.swap(batch);
-    running_results.assign(running.size(),
-                           Result<std::vector<markers::Dot>>(internal_error("not run")));
-    group.run([&] {
-      tbb::parallel_for(std::size_t{0}, running.size(), [&](std::size_t i) {
-        const auto t0 = Clock::now();
-        const recording::RawImage& im = running[i].image;
-        markers::ImageView v{
-            static_cast<int>(im.width), static_cast<int>(im.height),
-            static_cast<std::ptrdiff_t>(im.step),
-            im.encoding == "rgb8" ? markers::PixelFormat::kRgb8 : markers::PixelFormat::kMono8,
-            im.data.data()};
-        running_results[i] =
-            options.color ? markers::detect_color_dots(v, *color) : markers::detect_blobs(v, blobs);
-        detect_ns +=
-            std::chrono::duration_cast<std::chrono::nanoseconds>(Clock::now() - t0).count();
-      });
-    });
-  };
-  ro.topics = topics;
+    running_.clear();
+    results_.clear();
+  }
+  const Status& error() const { return error_; }
+  // Per-frame detection times summed (CPU-seconds); time the reading thread waited.
+  double detection_s() const { return static_cast<double>(detect_ns_.load()) * 1e-9; }
+  double wait_s() const { return wait_s_; }
+
+ private:
+  static constexpr std::size_t kBatch = 6;
+  const SessionReadOptions& options_;
+  const std::string& name_;
+  const std::vector<calib::CameraModel>& cameras_;
+  std::vector<SessionStep>& steps_;
+  markers::BlobOptions blobs_;
+  std::optional<markers::ColorDotOptions> color_;
+  std::vector<PendingFrame> batch_, running_;
+  std::vector<Result<std::vector<markers::Dot>>> results_;
+  tbb::task_group group_;
+  std::atomic<std::int64_t> detect_ns_{0};
+  double wait_s_ = 0;
+  Status error_;
+};
+
+// Frames: streams the camera channels and detects markers in the first frame after each step's
+// trigger edge (the last edge at or before the frame's log time).
+Status detect_step_frames(const recording::McapReader& reader, const std::map<std::uint64_t, Sync>& sync,
+                          const SessionReadOptions& options, const std::string& name,
+                          std::vector<SessionStep>* steps, SessionDetections* out) {
+  const std::vector<calib::CameraModel>& cameras = out->cameras;
+  std::vector<std::int64_t> edge_times;
+  std::vector<std::uint64_t> edge_index;
+  for (const auto& [index, s] : sync) {
+    edge_times.push_back(s.edge_ns);
+    edge_index.push_back(index);
+  }
+  std::map<std::uint64_t, std::size_t> step_of_trigger;
+  for (std::size_t k = 0; k < steps->size(); ++k) step_of_trigger[(*steps)[k].trigger_index] = k;
+  std::map<std::string, std::size_t> camera_of_topic;
+  recording::ReadOptions ro;
+  for (std::size_t c = 0; c < cameras.size(); ++c) {
+    ro.topics.push_back(session::camera_topic(cameras[c].name));
+    camera_of_topic[ro.topics.back()] = c;
+  }
   ro.order = recording::ReadOrder::kFile;
-  ProgressTask task(options.progress, "detecting markers", steps.size() * nc);
+  std::optional<tbb::global_control> limit;
+  if (options.threads > 0)
+    limit.emplace(tbb::global_control::max_allowed_parallelism,
+                  static_cast<std::size_t>(options.threads));
+  ProgressTask task(options.progress, "detecting markers", steps->size() * cameras.size());
   const auto t_frames = Clock::now();
-  read = reader.read_messages(ro, [&](const recording::MessageEvent& e) {
+  Status bad;
+  BatchDetector detector(options, name, cameras, steps);
+  const Status read = reader.read_messages(ro, [&](const recording::MessageEvent& e) {
     const std::size_t c = camera_of_topic.at(e.channel->topic);
-    // The edge this frame follows: the last edge at or before its log time.
     const auto t = static_cast<std::int64_t>(e.message.log_time);
     auto it = std::upper_bound(edge_times.begin(), edge_times.end(), t);
     if (it == edge_times.begin()) return true;
     const std::uint64_t trig = edge_index[static_cast<std::size_t>(it - edge_times.begin() - 1)];
     auto s = step_of_trigger.find(trig);
-    if (s == step_of_trigger.end() || steps[s->second].frames_found[c]) return true;
+    if (s == step_of_trigger.end() || (*steps)[s->second].frames_found[c]) return true;
     Result<recording::RawImage> im = recording::decode_raw_image(e.message.data);
     if (!im.ok()) {
       bad = invalid_argument(fmt::format("{}: {} frame {}: {}", name, e.channel->topic,
@@ -393,28 +449,57 @@ Result<SessionDetections> read_session_detections(const std::filesystem::path& s
                                          e.channel->topic, im->encoding));
       return false;
     }
-    if (static_cast<int>(im->width) != out.cameras[c].width ||
-        static_cast<int>(im->height) != out.cameras[c].height) {
+    if (static_cast<int>(im->width) != cameras[c].width ||
+        static_cast<int>(im->height) != cameras[c].height) {
       bad = invalid_argument(fmt::format(
           "{}: camera '{}' frame is {}x{} but the calibration is for {}x{}", name,
-          out.cameras[c].name, im->width, im->height, out.cameras[c].width, out.cameras[c].height));
+          cameras[c].name, im->width, im->height, cameras[c].width, cameras[c].height));
       return false;
     }
-    steps[s->second].frames_found[c] = 1;
+    (*steps)[s->second].frames_found[c] = 1;
     task.advance();
-    batch.push_back({s->second, c, std::move(*im)});
-    if (batch.size() >= kBatch) flush();
+    detector.add({s->second, c, std::move(*im)});
     return true;
   });
   const double read_s = seconds_since(t_frames);
-  if (read.ok() && bad.ok()) flush();
-  collect();  // never leave a task running on this frame's locals
+  if (read.ok() && bad.ok()) detector.flush();
+  detector.collect();
   if (!read.ok()) return invalid_argument(read.to_string());
   HC_RETURN_IF_ERROR(bad);
-  HC_RETURN_IF_ERROR(detect_error);
-  out.times.detection_s = static_cast<double>(detect_ns.load()) * 1e-9;
-  out.times.decode_s += read_s - wait_s;  // this thread's reading and decoding
-  out.times.frames_s = seconds_since(t_frames);
+  HC_RETURN_IF_ERROR(detector.error());
+  out->times.detection_s = detector.detection_s();
+  out->times.decode_s += read_s - detector.wait_s();  // this thread's reading and decoding
+  out->times.frames_s = seconds_since(t_frames);
+  return {};
+}
+
+}  // namespace
+
+Result<SessionDetections> read_session_detections(const std::filesystem::path& session,
+                                                  const calib::RigCalibration& calibration,
+                                                  const SessionReadOptions& options) {
+  const auto t_start = Clock::now();
+  HC_RETURN_IF_ERROR(options.blobs.validate());
+  if (options.color) HC_RETURN_IF_ERROR(options.color->validate());
+  if (!(options.shaft_marker_area_ratio > 1.0) || !(options.shaft_marker_max_area_px >= 0.0))
+    return invalid_argument("shaft_marker_area_ratio must be > 1, shaft_marker_max_area_px >= 0");
+  Result<recording::McapReader> opened = recording::McapReader::open(session);
+  if (!opened.ok()) return invalid_argument(opened.status().to_string());
+  const recording::McapReader& reader = *opened;
+  const std::string name = session.filename().string();
+  SessionDetections out;
+  HC_RETURN_IF_ERROR(match_session_cameras(reader, calibration, name, &out));
+  HC_RETURN_IF_ERROR(read_session_metadata(reader, name, &out));
+
+  const auto t_json = Clock::now();
+  HC_ASSIGN_OR_RETURN(JsonRecords records, read_json_records(reader, name));
+  const std::map<std::uint64_t, Sync> sync = records.sync;
+  HC_ASSIGN_OR_RETURN(std::vector<SessionStep> steps,
+                      session_steps(std::move(records), name, out.cameras, options.max_steps));
+  out.has_truth = !steps.empty() && !steps.front().truth_markers_m.empty();
+  out.times.decode_s += seconds_since(t_json);
+
+  HC_RETURN_IF_ERROR(detect_step_frames(reader, sync, options, name, &steps, &out));
   out.steps = std::move(steps);
   out.times.total_s = seconds_since(t_start);
   return out;
