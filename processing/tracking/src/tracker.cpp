@@ -278,6 +278,104 @@ Result<StepResult> MarkerTracker::initialise(const FrameDetections& detections) 
   return r;
 }
 
+namespace {
+
+// One association attempt of the markers' predicted positions with a step's detections: each
+// detection goes to the nearest unambiguous projected marker, then each marker seen in enough
+// views is triangulated. Retired markers take part in nothing.
+StepResult associate(const std::vector<calib::CameraModel>& cameras, const TrackOptions& options,
+                     const FrameDetections& detections, const std::vector<PixelGrid>& grids,
+                     const std::vector<std::uint8_t>& retired,
+                     const std::vector<Eigen::Vector3d>& predicted) {
+  const std::size_t nc = cameras.size(), nm = predicted.size();
+  StepResult r;
+  r.points_m = predicted;
+  r.measured.assign(nm, 0);
+  r.views.assign(nm, 0);
+  r.owner.resize(nc);
+  std::vector<std::vector<double>> owner_dist(nc);
+  std::vector<std::vector<int>> det(nm, std::vector<int>(nc, -1));
+  for (std::size_t c = 0; c < nc; ++c) {
+    r.owner[c].assign(detections[c].size(), -1);
+    owner_dist[c].assign(detections[c].size(), std::numeric_limits<double>::infinity());
+    r.detections += detections[c].size();
+  }
+  for (std::size_t m = 0; m < nm; ++m)
+    for (std::size_t c = 0; c < nc; ++c) {
+      if (retired[m]) break;
+      const auto p = cameras[c].project(predicted[m]);
+      if (!p) continue;
+      int i1, i2;
+      double d1, d2;
+      grids[c].nearest2(*p, options.search_radius_px, i1, d1, i2, d2);
+      if (i1 < 0) continue;
+      if (i2 >= 0 && d1 > options.ambiguity_ratio * d2) continue;
+      const auto k = static_cast<std::size_t>(i1);
+      if (d1 < owner_dist[c][k]) {
+        if (r.owner[c][k] >= 0) det[static_cast<std::size_t>(r.owner[c][k])][c] = -1;
+        r.owner[c][k] = static_cast<int>(m);
+        owner_dist[c][k] = d1;
+        det[m][c] = i1;
+      }
+    }
+  double ss = 0;
+  std::size_t nv = 0;
+  for (std::size_t m = 0; m < nm; ++m) {
+    Eigen::Vector3d X;
+    double rms = 0;
+    if (triangulate_marker(cameras, detections, det[m], options.min_views, options.max_rms_px, X,
+                           rms)) {
+      r.points_m[m] = X;
+      r.measured[m] = 1;
+      int v = 0;
+      for (std::size_t c = 0; c < nc; ++c) v += det[m][c] >= 0 ? 1 : 0;
+      r.views[m] = v;
+      ss += rms * rms * v;
+      nv += static_cast<std::size_t>(v);
+    }
+  }
+  // Detections owned by markers that ended up unmeasured (or lost a view) are released.
+  for (std::size_t c = 0; c < nc; ++c)
+    for (std::size_t k = 0; k < r.owner[c].size(); ++k) {
+      const int m = r.owner[c][k];
+      if (m < 0) continue;
+      if (!r.measured[static_cast<std::size_t>(m)] ||
+          det[static_cast<std::size_t>(m)][c] != static_cast<int>(k)) {
+        r.owner[c][k] = -1;
+      } else {
+        ++r.matched_detections;
+      }
+    }
+  r.reprojection_rms_px = nv ? std::sqrt(ss / static_cast<double>(nv)) : 0.0;
+  return r;
+}
+
+long measured_count(const StepResult& r) {
+  return std::count(r.measured.begin(), r.measured.end(), std::uint8_t{1});
+}
+
+// Unmeasured markers move with the mean displacement (from `position`) of their 4 nearest
+// measured ones.
+void predict_unmeasured(const std::vector<Eigen::Vector3d>& position, StepResult* r) {
+  const std::size_t nm = position.size();
+  std::vector<std::size_t> measured_ids;
+  for (std::size_t m = 0; m < nm; ++m)
+    if (r->measured[m]) measured_ids.push_back(m);
+  for (std::size_t m = 0; m < nm; ++m) {
+    if (r->measured[m]) continue;
+    std::vector<std::pair<double, std::size_t>> near;
+    for (std::size_t q : measured_ids) near.emplace_back((position[q] - position[m]).squaredNorm(), q);
+    const std::size_t k = std::min<std::size_t>(4, near.size());
+    std::partial_sort(near.begin(), near.begin() + static_cast<std::ptrdiff_t>(k), near.end());
+    Eigen::Vector3d d = Eigen::Vector3d::Zero();
+    for (std::size_t i = 0; i < k; ++i) d += r->points_m[near[i].second] - position[near[i].second];
+    r->points_m[m] =
+        position[m] + (k ? Eigen::Vector3d(d / static_cast<double>(k)) : Eigen::Vector3d::Zero());
+  }
+}
+
+}  // namespace
+
 Result<StepResult> MarkerTracker::track(const FrameDetections& detections) {
   if (!initialised_) return failed_precondition("MarkerTracker::track before initialise");
   const std::size_t nc = cameras_.size();
@@ -288,72 +386,8 @@ Result<StepResult> MarkerTracker::track(const FrameDetections& detections) {
   grids.reserve(nc);
   for (std::size_t c = 0; c < nc; ++c) grids.emplace_back(detections[c], 16.0);
   const std::size_t nm = position_.size();
-
-  // One association attempt from a set of predicted positions.
   const auto attempt = [&](const std::vector<Eigen::Vector3d>& predicted) {
-    StepResult r;
-    r.points_m = predicted;
-    r.measured.assign(nm, 0);
-    r.views.assign(nm, 0);
-    r.owner.resize(nc);
-    std::vector<std::vector<double>> owner_dist(nc);
-    std::vector<std::vector<int>> det(nm, std::vector<int>(nc, -1));
-    for (std::size_t c = 0; c < nc; ++c) {
-      r.owner[c].assign(detections[c].size(), -1);
-      owner_dist[c].assign(detections[c].size(), std::numeric_limits<double>::infinity());
-      r.detections += detections[c].size();
-    }
-    for (std::size_t m = 0; m < nm; ++m)
-      for (std::size_t c = 0; c < nc; ++c) {
-        if (retired_[m]) break;
-        const auto p = cameras_[c].project(predicted[m]);
-        if (!p) continue;
-        int i1, i2;
-        double d1, d2;
-        grids[c].nearest2(*p, options_.search_radius_px, i1, d1, i2, d2);
-        if (i1 < 0) continue;
-        if (i2 >= 0 && d1 > options_.ambiguity_ratio * d2) continue;
-        const auto k = static_cast<std::size_t>(i1);
-        if (d1 < owner_dist[c][k]) {
-          if (r.owner[c][k] >= 0) det[static_cast<std::size_t>(r.owner[c][k])][c] = -1;
-          r.owner[c][k] = static_cast<int>(m);
-          owner_dist[c][k] = d1;
-          det[m][c] = i1;
-        }
-      }
-    double ss = 0;
-    std::size_t nv = 0;
-    for (std::size_t m = 0; m < nm; ++m) {
-      Eigen::Vector3d X;
-      double rms = 0;
-      if (triangulate_marker(cameras_, detections, det[m], options_.min_views, options_.max_rms_px,
-                             X, rms)) {
-        r.points_m[m] = X;
-        r.measured[m] = 1;
-        int v = 0;
-        for (std::size_t c = 0; c < nc; ++c) v += det[m][c] >= 0 ? 1 : 0;
-        r.views[m] = v;
-        ss += rms * rms * v;
-        nv += static_cast<std::size_t>(v);
-      }
-    }
-    // Detections owned by markers that ended up unmeasured (or lost a view) are released.
-    for (std::size_t c = 0; c < nc; ++c)
-      for (std::size_t k = 0; k < r.owner[c].size(); ++k) {
-        const int m = r.owner[c][k];
-        if (m < 0) continue;
-        if (!r.measured[static_cast<std::size_t>(m)] ||
-            det[static_cast<std::size_t>(m)][c] != static_cast<int>(k)) {
-          r.owner[c][k] = -1;
-        } else {
-          ++r.matched_detections;
-        }
-      }
-    r.reprojection_rms_px = nv ? std::sqrt(ss / static_cast<double>(nv)) : 0.0;
-    return r;
-  };
-  const auto count = [](const StepResult& r) {
-    return std::count(r.measured.begin(), r.measured.end(), std::uint8_t{1});
+    return associate(cameras_, options_, detections, grids, retired_, predicted);
   };
   std::vector<Eigen::Vector3d> pred(nm);
   for (std::size_t m = 0; m < nm; ++m) pred[m] = position_[m] + velocity_[m];
@@ -361,42 +395,24 @@ Result<StepResult> MarkerTracker::track(const FrameDetections& detections) {
   // A jump the constant-velocity prediction misses (the probe retracted, a new location): try
   // the last positions as they are.
   const auto active = static_cast<double>(std::count(retired_.begin(), retired_.end(), 0));
-  if (static_cast<double>(count(best)) < 0.95 * active) {
+  if (static_cast<double>(measured_count(best)) < 0.95 * active) {
     StepResult still = attempt(position_);
-    if (count(still) > count(best)) best = std::move(still);
+    if (measured_count(still) > measured_count(best)) best = std::move(still);
   }
   // ... or the probe let go: the markers are back where they were first seen.
-  if (static_cast<double>(count(best)) < 0.95 * active) {
+  if (static_cast<double>(measured_count(best)) < 0.95 * active) {
     StepResult back = attempt(rest_);
-    if (count(back) > count(best)) best = std::move(back);
+    if (measured_count(back) > measured_count(best)) best = std::move(back);
   }
-  // Unmeasured markers move with the mean displacement of their 4 nearest measured ones; while
-  // that lets more markers be found (a dimple released in one step: the rim is found first, then
-  // the markers inside it), associate again from these predictions.
-  const auto predict_unmeasured = [&](StepResult& r) {
-    std::vector<std::size_t> measured_ids;
-    for (std::size_t m = 0; m < nm; ++m)
-      if (r.measured[m]) measured_ids.push_back(m);
-    for (std::size_t m = 0; m < nm; ++m) {
-      if (r.measured[m]) continue;
-      std::vector<std::pair<double, std::size_t>> near;
-      for (std::size_t q : measured_ids)
-        near.emplace_back((position_[q] - position_[m]).squaredNorm(), q);
-      const std::size_t k = std::min<std::size_t>(4, near.size());
-      std::partial_sort(near.begin(), near.begin() + static_cast<std::ptrdiff_t>(k), near.end());
-      Eigen::Vector3d d = Eigen::Vector3d::Zero();
-      for (std::size_t i = 0; i < k; ++i)
-        d += r.points_m[near[i].second] - position_[near[i].second];
-      r.points_m[m] = position_[m] +
-                      (k ? Eigen::Vector3d(d / static_cast<double>(k)) : Eigen::Vector3d::Zero());
-    }
-  };
-  predict_unmeasured(best);
-  for (int pass = 0; pass < 8 && count(best) < static_cast<long>(active); ++pass) {
+  // While moving the unmeasured markers with their neighbours lets more markers be found (a
+  // dimple released in one step: the rim is found first, then the markers inside it), associate
+  // again from these predictions.
+  predict_unmeasured(position_, &best);
+  for (int pass = 0; pass < 8 && measured_count(best) < static_cast<long>(active); ++pass) {
     StepResult again = attempt(best.points_m);
-    if (count(again) <= count(best)) break;
+    if (measured_count(again) <= measured_count(best)) break;
     best = std::move(again);
-    predict_unmeasured(best);
+    predict_unmeasured(position_, &best);
   }
   for (std::size_t m = 0; m < nm; ++m) {
     velocity_[m] = best.points_m[m] - position_[m];
@@ -405,44 +421,45 @@ Result<StepResult> MarkerTracker::track(const FrameDetections& detections) {
     if (birth_[m] > 0 && unmeasured_run_[m] >= options_.retire_after_steps) retired_[m] = 1;
   }
   ++step_;
-  if (options_.detect_new_markers) {
-    // Leftover detections, matched among themselves.
-    FrameDetections left(nc);
-    std::vector<std::vector<int>> index(nc);
-    for (std::size_t c = 0; c < nc; ++c)
-      for (std::size_t k = 0; k < detections[c].size(); ++k)
-        if (best.owner[c][k] < 0) {
-          left[c].push_back(detections[c][k]);
-          index[c].push_back(static_cast<int>(k));
-        }
-    Result<std::vector<MatchedPoint>> fresh = match_views(cameras_, left, options_.match);
-    if (fresh.ok()) {
-      for (const MatchedPoint& p : *fresh) {
-        bool near = false;
-        for (std::size_t m = 0; m < position_.size() && !near; ++m)
-          near =
-              !retired_[m] && (position_[m] - p.point_m).norm() < options_.new_marker_separation_m;
-        if (near) continue;
-        const int id = static_cast<int>(position_.size());
-        position_.push_back(p.point_m);
-        velocity_.push_back(Eigen::Vector3d::Zero());
-        birth_.push_back(step_);
-        rest_.push_back(p.point_m);
-        unmeasured_run_.push_back(0);
-        retired_.push_back(0);
-        best.points_m.push_back(p.point_m);
-        best.measured.push_back(1);
-        best.views.push_back(p.views());
-        for (std::size_t c = 0; c < nc; ++c)
-          if (p.detection[c] >= 0) {
-            best.owner[c][static_cast<std::size_t>(
-                index[c][static_cast<std::size_t>(p.detection[c])])] = id;
-            ++best.matched_detections;
-          }
-      }
-    }
-  }
+  if (options_.detect_new_markers) add_new_markers(detections, &best);
   return best;
+}
+
+void MarkerTracker::add_new_markers(const FrameDetections& detections, StepResult* best) {
+  // Leftover detections, matched among themselves.
+  const std::size_t nc = cameras_.size();
+  FrameDetections left(nc);
+  std::vector<std::vector<int>> index(nc);
+  for (std::size_t c = 0; c < nc; ++c)
+    for (std::size_t k = 0; k < detections[c].size(); ++k)
+      if (best->owner[c][k] < 0) {
+        left[c].push_back(detections[c][k]);
+        index[c].push_back(static_cast<int>(k));
+      }
+  Result<std::vector<MatchedPoint>> fresh = match_views(cameras_, left, options_.match);
+  if (!fresh.ok()) return;
+  for (const MatchedPoint& p : *fresh) {
+    bool near = false;
+    for (std::size_t m = 0; m < position_.size() && !near; ++m)
+      near = !retired_[m] && (position_[m] - p.point_m).norm() < options_.new_marker_separation_m;
+    if (near) continue;
+    const int id = static_cast<int>(position_.size());
+    position_.push_back(p.point_m);
+    velocity_.push_back(Eigen::Vector3d::Zero());
+    birth_.push_back(step_);
+    rest_.push_back(p.point_m);
+    unmeasured_run_.push_back(0);
+    retired_.push_back(0);
+    best->points_m.push_back(p.point_m);
+    best->measured.push_back(1);
+    best->views.push_back(p.views());
+    for (std::size_t c = 0; c < nc; ++c)
+      if (p.detection[c] >= 0) {
+        best->owner[c][static_cast<std::size_t>(
+            index[c][static_cast<std::size_t>(p.detection[c])])] = id;
+        ++best->matched_detections;
+      }
+  }
 }
 
 Result<Eigen::Isometry3d> absolute_orientation(const Eigen::Matrix3Xd& src,

@@ -103,6 +103,10 @@ class MarkerTracker {
   const std::vector<calib::CameraModel>& cameras() const { return cameras_; }
 
  private:
+  // Markers from the step's leftover detections, matched among themselves, away from the known
+  // ones: appended to the tracker and to *best.
+  void add_new_markers(const FrameDetections& detections, StepResult* best);
+
   std::vector<calib::CameraModel> cameras_;
   TrackOptions options_;
   std::vector<Eigen::Vector3d> position_;  // last measured (or predicted) position
