@@ -106,6 +106,13 @@ struct CorotationalFem::Impl {
   // Per free node and column c: value index of the node's own diagonal block (rows 0..c).
   std::vector<int> self_start;
   SparseCholesky cholesky;
+
+  // Parts of create(): shape-function gradients and volumes (refusing degenerate and inverted
+  // tets); the free-node numbering (unreferenced nodes are fixed too); K's upper-triangle pattern
+  // and the scatter map.
+  Status set_rest_geometry();
+  Status number_free_nodes(const std::vector<int>& fixed_in, const std::vector<char>& used);
+  Status build_pattern();
 };
 
 CorotationalFem::CorotationalFem(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) {}
@@ -113,14 +120,10 @@ CorotationalFem::CorotationalFem(CorotationalFem&&) noexcept = default;
 CorotationalFem& CorotationalFem::operator=(CorotationalFem&&) noexcept = default;
 CorotationalFem::~CorotationalFem() = default;
 
-Result<CorotationalFem> CorotationalFem::create(const TetMesh& mesh,
-                                                const std::vector<int>& fixed_nodes,
-                                                const CorotationalOptions& options) {
-  HC_RETURN_IF_ERROR(options.validate());
-  auto impl = std::make_unique<Impl>();
-  Impl& s = *impl;
-  s.mesh = mesh;
-  s.options = options;
+namespace {
+
+// Checks the mesh; *used_nodes marks the nodes some tet references.
+Status check_mesh(const TetMesh& mesh, std::vector<char>* used_nodes) {
   const Eigen::Index n = mesh.num_nodes();
   const Eigen::Index t = mesh.num_tets();
   if (n < 4 || t < 1) {
@@ -135,7 +138,8 @@ Result<CorotationalFem> CorotationalFem::create(const TetMesh& mesh,
       }
     }
   }
-  std::vector<char> used(static_cast<size_t>(n), 0);
+  std::vector<char>& used = *used_nodes;
+  used.assign(static_cast<size_t>(n), 0);
   for (Eigen::Index e = 0; e < t; ++e) {
     for (int a = 0; a < 4; ++a) {
       const int v = mesh.tets(e, a);
@@ -146,9 +150,15 @@ Result<CorotationalFem> CorotationalFem::create(const TetMesh& mesh,
       used[static_cast<size_t>(v)] = 1;
     }
   }
-  // Rest geometry.
-  s.grads.resize(static_cast<size_t>(t));
-  s.volumes.resize(static_cast<size_t>(t));
+  return {};
+}
+
+}  // namespace
+
+Status CorotationalFem::Impl::set_rest_geometry() {
+  const Eigen::Index t = mesh.num_tets();
+  grads.resize(static_cast<size_t>(t));
+  volumes.resize(static_cast<size_t>(t));
   double mean_abs_volume = 0;
   std::vector<double> signed_volume(static_cast<size_t>(t));
   std::vector<Eigen::Matrix3d> dm(static_cast<size_t>(t));
@@ -174,37 +184,48 @@ Result<CorotationalFem> CorotationalFem::create(const TetMesh& mesh,
     Matrix43d g;
     g.bottomRows<3>() = inv;  // row a-1 of Dm^{-1} is grad N_a for a = 1..3
     g.row(0) = -inv.colwise().sum();
-    s.grads[static_cast<size_t>(e)] = g;
-    s.volumes[static_cast<size_t>(e)] = v;
+    grads[static_cast<size_t>(e)] = g;
+    volumes[static_cast<size_t>(e)] = v;
   }
+  return {};
+}
+
+Status CorotationalFem::Impl::number_free_nodes(const std::vector<int>& fixed_in,
+                                                const std::vector<char>& used) {
+  const Eigen::Index n = mesh.num_nodes();
   // Fixed nodes (unreferenced nodes are fixed too: they carry no stiffness).
   std::vector<char> fixed(static_cast<size_t>(n), 0);
-  for (int f : fixed_nodes) {
+  for (int f : fixed_in) {
     if (f < 0 || f >= n) {
       return invalid_argument("FEM: fixed node " + std::to_string(f) + " out of range (mesh has " +
                               std::to_string(n) + " nodes)");
     }
     fixed[static_cast<size_t>(f)] = 1;
   }
-  s.free_index.assign(static_cast<size_t>(n), -1);
+  free_index.assign(static_cast<size_t>(n), -1);
   for (Eigen::Index i = 0; i < n; ++i) {
     if (!used[static_cast<size_t>(i)]) fixed[static_cast<size_t>(i)] = 1;
     if (fixed[static_cast<size_t>(i)]) {
-      s.fixed_nodes.push_back(static_cast<int>(i));
+      fixed_nodes.push_back(static_cast<int>(i));
     } else {
-      s.free_index[static_cast<size_t>(i)] = static_cast<int>(s.num_free++);
+      free_index[static_cast<size_t>(i)] = static_cast<int>(num_free++);
     }
   }
-  if (s.num_free == 0) return invalid_argument("FEM: every node is fixed; nothing to solve");
+  if (num_free == 0) return invalid_argument("FEM: every node is fixed; nothing to solve");
+  return {};
+}
+
+Status CorotationalFem::Impl::build_pattern() {
+  const Eigen::Index t = mesh.num_tets();
   // Pattern: for each free node j, the free nodes i <= j it shares an element with (node
   // adjacency).
-  std::vector<std::vector<int>> upper_nbrs(static_cast<size_t>(s.num_free));
+  std::vector<std::vector<int>> upper_nbrs(static_cast<size_t>(num_free));
   for (Eigen::Index e = 0; e < t; ++e) {
     for (int a = 0; a < 4; ++a) {
-      const int fa = s.free_index[static_cast<size_t>(mesh.tets(e, a))];
+      const int fa = free_index[static_cast<size_t>(mesh.tets(e, a))];
       if (fa < 0) continue;
       for (int b = 0; b < 4; ++b) {
-        const int fb = s.free_index[static_cast<size_t>(mesh.tets(e, b))];
+        const int fb = free_index[static_cast<size_t>(mesh.tets(e, b))];
         if (fb < 0 || fa > fb) continue;
         upper_nbrs[static_cast<size_t>(fb)].push_back(fa);
       }
@@ -216,54 +237,71 @@ Result<CorotationalFem> CorotationalFem::create(const TetMesh& mesh,
     v.erase(std::unique(v.begin(), v.end()), v.end());
     nnz += 9 * static_cast<Eigen::Index>(v.size()) - 3;  // self block contributes 6, others 9
   }
-  const Eigen::Index ndof = 3 * s.num_free;
+  const Eigen::Index ndof = 3 * num_free;
   if (nnz > std::numeric_limits<int>::max()) return invalid_argument("FEM: mesh too large");
-  s.k.resize(ndof, ndof);
-  s.k.resizeNonZeros(nnz);
-  int* outer = s.k.outerIndexPtr();
-  int* inner = s.k.innerIndexPtr();
+  k.resize(ndof, ndof);
+  k.resizeNonZeros(nnz);
+  int* outer = k.outerIndexPtr();
+  int* inner = k.innerIndexPtr();
   // column_start[j] for each free node's first column, and per node the position of each neighbour.
-  s.self_start.resize(static_cast<size_t>(ndof));
+  self_start.resize(static_cast<size_t>(ndof));
   int pos = 0;
-  for (Eigen::Index j = 0; j < s.num_free; ++j) {
+  for (Eigen::Index j = 0; j < num_free; ++j) {
     const auto& nb = upper_nbrs[static_cast<size_t>(j)];
     for (int c = 0; c < 3; ++c) {
       outer[3 * j + c] = pos;
       for (int i : nb) {
         const int rows = (i == j) ? c + 1 : 3;
-        if (i == j) s.self_start[static_cast<size_t>(3 * j + c)] = pos;
+        if (i == j) self_start[static_cast<size_t>(3 * j + c)] = pos;
         for (int r = 0; r < rows; ++r) inner[pos++] = 3 * i + r;
       }
     }
   }
   outer[ndof] = pos;
-  s.k.valuePtr()[0] = 0;
-  std::fill(s.k.valuePtr(), s.k.valuePtr() + nnz, 0.0);
+  k.valuePtr()[0] = 0;
+  std::fill(k.valuePtr(), k.valuePtr() + nnz, 0.0);
   // Scatter map. Position of node i's rows in column (3j + c): column start + 9 * (rank of i among
   // j's neighbours) works for c's offset since all neighbour blocks before the self block have 3
   // rows.
-  s.scatter.assign(static_cast<size_t>(t) * 48, -1);
+  scatter.assign(static_cast<size_t>(t) * 48, -1);
   for (Eigen::Index e = 0; e < t; ++e) {
     for (int a = 0; a < 4; ++a) {
-      const int fa = s.free_index[static_cast<size_t>(mesh.tets(e, a))];
+      const int fa = free_index[static_cast<size_t>(mesh.tets(e, a))];
       if (fa < 0) continue;
       for (int b = 0; b < 4; ++b) {
-        const int fb = s.free_index[static_cast<size_t>(mesh.tets(e, b))];
+        const int fb = free_index[static_cast<size_t>(mesh.tets(e, b))];
         if (fb < 0 || fa > fb) continue;
         const auto& nb = upper_nbrs[static_cast<size_t>(fb)];
         const auto rank = std::lower_bound(nb.begin(), nb.end(), fa) - nb.begin();
         for (int c = 0; c < 3; ++c) {
-          s.scatter[static_cast<size_t>(e) * 48 + static_cast<size_t>(a * 4 + b) * 3 +
-                    static_cast<size_t>(c)] = outer[3 * fb + c] + 3 * static_cast<int>(rank);
+          scatter[static_cast<size_t>(e) * 48 + static_cast<size_t>(a * 4 + b) * 3 +
+                  static_cast<size_t>(c)] = outer[3 * fb + c] + 3 * static_cast<int>(rank);
         }
       }
     }
   }
-  s.params.assign(static_cast<size_t>(t), LambdaAlpha{});
+  rhs = Eigen::VectorXd::Zero(ndof);
+  return {};
+}
+
+Result<CorotationalFem> CorotationalFem::create(const TetMesh& mesh,
+                                                const std::vector<int>& fixed_nodes,
+                                                const CorotationalOptions& options) {
+  HC_RETURN_IF_ERROR(options.validate());
+  std::vector<char> used;
+  HC_RETURN_IF_ERROR(check_mesh(mesh, &used));
+  auto impl = std::make_unique<Impl>();
+  Impl& s = *impl;
+  s.mesh = mesh;
+  s.options = options;
+  HC_RETURN_IF_ERROR(s.set_rest_geometry());
+  HC_RETURN_IF_ERROR(s.number_free_nodes(fixed_nodes, used));
+  HC_RETURN_IF_ERROR(s.build_pattern());
+  const auto t = static_cast<size_t>(mesh.num_tets());
+  s.params.assign(t, LambdaAlpha{});
   s.x = mesh.nodes;
-  s.rotations.assign(static_cast<size_t>(t), Eigen::Matrix3d::Identity());
-  s.quats.assign(static_cast<size_t>(t), Eigen::Quaterniond::Identity());
-  s.rhs = Eigen::VectorXd::Zero(ndof);
+  s.rotations.assign(t, Eigen::Matrix3d::Identity());
+  s.quats.assign(t, Eigen::Quaterniond::Identity());
   HC_RETURN_IF_ERROR(s.cholesky.analyze(s.k));
   return CorotationalFem(std::move(impl));
 }

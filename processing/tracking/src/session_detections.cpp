@@ -318,11 +318,16 @@ class BatchDetector {
  public:
   BatchDetector(const SessionReadOptions& options, const std::string& name,
                 const std::vector<calib::CameraModel>& cameras, std::vector<SessionStep>* steps)
-      : options_(options), name_(name), cameras_(cameras), steps_(*steps), blobs_(options.blobs),
+      : options_(options),
+        name_(name),
+        cameras_(cameras),
+        steps_(*steps),
+        blobs_(options.blobs),
         color_(options.color) {
     // Detected up to the shaft markers' size, then split by area (see SessionReadOptions).
     blobs_.max_area_px = std::max(blobs_.max_area_px, options.shaft_marker_max_area_px);
-    if (color_) color_->max_area_px = std::max(color_->max_area_px, options.shaft_marker_max_area_px);
+    if (color_)
+      color_->max_area_px = std::max(color_->max_area_px, options.shaft_marker_max_area_px);
   }
   ~BatchDetector() { collect(); }  // never leave a task running on the frames it holds
 
@@ -403,7 +408,8 @@ class BatchDetector {
 
 // Frames: streams the camera channels and detects markers in the first frame after each step's
 // trigger edge (the last edge at or before the frame's log time).
-Status detect_step_frames(const recording::McapReader& reader, const std::map<std::uint64_t, Sync>& sync,
+Status detect_step_frames(const recording::McapReader& reader,
+                          const std::map<std::uint64_t, Sync>& sync,
                           const SessionReadOptions& options, const std::string& name,
                           std::vector<SessionStep>* steps, SessionDetections* out) {
   const std::vector<calib::CameraModel>& cameras = out->cameras;
@@ -451,9 +457,9 @@ Status detect_step_frames(const recording::McapReader& reader, const std::map<st
     }
     if (static_cast<int>(im->width) != cameras[c].width ||
         static_cast<int>(im->height) != cameras[c].height) {
-      bad = invalid_argument(fmt::format(
-          "{}: camera '{}' frame is {}x{} but the calibration is for {}x{}", name,
-          cameras[c].name, im->width, im->height, cameras[c].width, cameras[c].height));
+      bad = invalid_argument(
+          fmt::format("{}: camera '{}' frame is {}x{} but the calibration is for {}x{}", name,
+                      cameras[c].name, im->width, im->height, cameras[c].width, cameras[c].height));
       return false;
     }
     (*steps)[s->second].frames_found[c] = 1;

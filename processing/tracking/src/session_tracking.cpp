@@ -458,8 +458,8 @@ material::Example step_example(const TrackContext& c, std::size_t k,
 void finish_summary(const TrackContext& c, const TruthStats& ts, std::size_t measured_pairs,
                     std::size_t matched_dets, std::size_t all_dets, TrackSummary* sum) {
   const SessionDetections& in = c.in;
-  sum->matched_fraction = static_cast<double>(measured_pairs) /
-                          static_cast<double>(c.kept.size() * in.steps.size());
+  sum->matched_fraction =
+      static_cast<double>(measured_pairs) / static_cast<double>(c.kept.size() * in.steps.size());
   sum->detections_matched_fraction =
       all_dets ? static_cast<double>(matched_dets) / static_cast<double>(all_dets) : 0.0;
   double rs = 0, rn = 0;
@@ -475,8 +475,7 @@ void finish_summary(const TrackContext& c, const TruthStats& ts, std::size_t mea
     sum->truth_rms_error_m = ts.t_n ? std::sqrt(ts.t_ss / static_cast<double>(ts.t_n)) : 0.0;
     sum->truth_max_error_m = ts.t_max;
     sum->truth_matched_fraction =
-        ts.t_visible ? static_cast<double>(ts.t_measured) / static_cast<double>(ts.t_visible)
-                     : 0.0;
+        ts.t_visible ? static_cast<double>(ts.t_measured) / static_cast<double>(ts.t_visible) : 0.0;
     sum->filled = ts.f_n;
     sum->filled_truth_rms_error_m = ts.f_n ? std::sqrt(ts.f_ss / static_cast<double>(ts.f_n)) : 0.0;
     sum->filled_truth_max_error_m = ts.f_max;
@@ -530,7 +529,8 @@ Result<TrackedSession> track_detections(const SessionDetections& in,
   // ---- Registration to the template ----
   t0 = Clock::now();
   TrackContext c{in, calibration, mesh, options, results};
-  for (Eigen::Index i = 0; i < mesh.num_nodes(); ++i) c.nodes.push_back(mesh.nodes.row(i).transpose());
+  for (Eigen::Index i = 0; i < mesh.num_nodes(); ++i)
+    c.nodes.push_back(mesh.nodes.row(i).transpose());
   std::vector<Eigen::Vector3d> first_world;
   for (const Eigen::Vector3d& p : results[0].points_m)
     first_world.push_back(calibration.world_from_rig * p);
@@ -539,8 +539,8 @@ Result<TrackedSession> track_detections(const SessionDetections& in,
   c.T_tpl_world = reg.T;
   c.T_tpl_rig = reg.T * calibration.world_from_rig;
   const std::vector<int>& birth = tracker.birth_step();
-  const std::vector<int> node_of = assign_marker_nodes(
-      results, birth, reg, c.T_tpl_rig, c.nodes, options.template_match_distance_m);
+  const std::vector<int> node_of = assign_marker_nodes(results, birth, reg, c.T_tpl_rig, c.nodes,
+                                                       options.template_match_distance_m);
   for (std::size_t m = 0; m < node_of.size(); ++m)
     if (node_of[m] >= 0) {
       c.kept.push_back(m);
@@ -554,13 +554,15 @@ Result<TrackedSession> track_detections(const SessionDetections& in,
   // Fixed nodes: the template's bottom.
   const double zmin = mesh.nodes.col(2).minCoeff();
   for (Eigen::Index i = 0; i < mesh.num_nodes(); ++i)
-    if (mesh.nodes(i, 2) <= zmin + options.fixed_tolerance_m) c.fixed.push_back(static_cast<int>(i));
+    if (mesh.nodes(i, 2) <= zmin + options.fixed_tolerance_m)
+      c.fixed.push_back(static_cast<int>(i));
   c.on_surface = boundary_nodes(mesh);
   for (std::size_t n = 0; n < c.nodes.size(); ++n)
     if (c.on_surface[n]) c.surface_nodes.push_back(c.nodes[n]);
   c.truth_of = truth_indices(c, birth);
-  c.shaft_distances = options.probe.shaft_marker_distances_m ? options.probe.shaft_marker_distances_m
-                                                              : in.shaft_marker_distances_m;
+  c.shaft_distances = options.probe.shaft_marker_distances_m
+                          ? options.probe.shaft_marker_distances_m
+                          : in.shaft_marker_distances_m;
 
   out.samples.mesh = mesh;
   TruthStats ts;

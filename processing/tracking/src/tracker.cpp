@@ -364,7 +364,8 @@ void predict_unmeasured(const std::vector<Eigen::Vector3d>& position, StepResult
   for (std::size_t m = 0; m < nm; ++m) {
     if (r->measured[m]) continue;
     std::vector<std::pair<double, std::size_t>> near;
-    for (std::size_t q : measured_ids) near.emplace_back((position[q] - position[m]).squaredNorm(), q);
+    for (std::size_t q : measured_ids)
+      near.emplace_back((position[q] - position[m]).squaredNorm(), q);
     const std::size_t k = std::min<std::size_t>(4, near.size());
     std::partial_sort(near.begin(), near.begin() + static_cast<std::ptrdiff_t>(k), near.end());
     Eigen::Vector3d d = Eigen::Vector3d::Zero();
@@ -455,8 +456,9 @@ void MarkerTracker::add_new_markers(const FrameDetections& detections, StepResul
     best->views.push_back(p.views());
     for (std::size_t c = 0; c < nc; ++c)
       if (p.detection[c] >= 0) {
-        best->owner[c][static_cast<std::size_t>(
-            index[c][static_cast<std::size_t>(p.detection[c])])] = id;
+        best->owner[c]
+                   [static_cast<std::size_t>(index[c][static_cast<std::size_t>(p.detection[c])])] =
+            id;
         ++best->matched_detections;
       }
   }
