@@ -136,6 +136,188 @@ Result<PartTree> part_tree(const std::vector<CarvedPart>& parts, const std::vect
   return t;
 }
 
+namespace {
+
+// Every part closed, manifold and free of self-intersections; as many parts as a tree of the
+// accepted joints has.
+Status check_parts(const std::vector<CarvedPart>& parts, const std::vector<Joint>& joints,
+                   const VerificationOptions& options, ProgressTask* task, VerificationReport* r) {
+  r->parts_valid = !parts.empty();
+  for (const CarvedPart& p : parts) {
+    fabrication::MeshCheckOptions check;
+    check.check_self_intersections = options.check_self_intersections;
+    HC_ASSIGN_OR_RETURN(const fabrication::MeshCheckReport c, fabrication::check_mesh(p.mesh, check));
+    PartCheck pc{p.name, c.closed, c.manifold,
+                 c.self_intersections_checked ? c.self_intersecting_pairs : -1, c.volume};
+    if (!c.closed || !c.manifold || pc.self_intersecting_pairs > 0) {
+      r->parts_valid = false;
+      r->problems.push_back(fmt::format("part {} is not a valid solid", p.name));
+    }
+    r->parts.push_back(pc);
+    task->advance();
+  }
+  int accepted = 0;
+  for (const Joint& j : joints) accepted += j.excluded ? 0 : 1;
+  r->expected_parts = accepted + 1;
+  if (static_cast<int>(parts.size()) != r->expected_parts)
+    r->problems.push_back(fmt::format("{} parts for {} joints (a tree has {})", parts.size(),
+                                      accepted, r->expected_parts));
+  return {};
+}
+
+// The closest approach of any two parts (searched within 2 d), a problem below the clearance d.
+Status check_clearance(const std::vector<CarvedPart>& parts,
+                       const std::vector<std::unique_ptr<geometry::MeshProximity>>& trees, double d,
+                       VerificationReport* r) {
+  for (std::size_t a = 0; a < parts.size(); ++a)
+    for (std::size_t b = a + 1; b < parts.size(); ++b) {
+      HC_ASSIGN_OR_RETURN(const geometry::ClosestApproach c,
+                          trees[b]->closest_approach(parts[a].mesh, 2 * d));
+      if (c.found && (r->min_part_distance_m < 0 || c.distance < r->min_part_distance_m)) {
+        r->min_part_distance_m = c.distance;
+        r->closest_parts = parts[a].name + "/" + parts[b].name;
+      }
+    }
+  if (r->min_part_distance_m >= 0 && r->min_part_distance_m < 0.99 * d)
+    r->problems.push_back(fmt::format("parts {} are {:.3f} mm apart (clearance {:.3f} mm)",
+                                      r->closest_parts, r->min_part_distance_m * 1e3, d * 1e3));
+  return {};
+}
+
+// What one joint's check needs besides the joint.
+struct JointCheckInput {
+  const std::vector<CarvedPart>& parts;
+  const std::vector<std::unique_ptr<geometry::MeshProximity>>& trees;
+  const std::vector<JointHull>& hulls;
+  const PartTree& tree;
+  const VerificationOptions& options;
+  double bump_zone;
+};
+
+// Joint i: its sides are separate parts, a ball cannot be pulled out of its socket, and the
+// moving side does not cross the rest anywhere in the joint's range.
+Result<JointCheck> check_joint(const JointCheckInput& in, const Joint& j, std::size_t i,
+                               std::vector<std::string>* problems) {
+  JointCheck jc;
+  jc.joint = static_cast<int>(i);
+  jc.parent_part = in.tree.joint_parent_part[i];
+  jc.child_part = in.tree.joint_child_part[i];
+  if (jc.parent_part < 0 || jc.child_part < 0 || jc.parent_part == jc.child_part) {
+    problems->push_back(
+        fmt::format("joint {} -> {} did not separate its sides", j.parent_name, j.child_name));
+    return jc;
+  }
+  if (j.type == JointType::kBall) {
+    // Pull a ball (radius r' less a hair) out along n: the lip must stop it.
+    jc.ball_held = false;
+    const TriangleMesh ball = sphere_mesh(j.ball.ball_radius * 0.995, 32, Facet::kInscribed);
+    for (double t = j.ball.r / 16; t <= 2 * j.ball.r && !jc.ball_held; t += j.ball.r / 16) {
+      TriangleMesh at = ball;
+      at.vertices.rowwise() += (j.centre + t * j.n).transpose();
+      HC_ASSIGN_OR_RETURN(const auto hit,
+                          in.trees[static_cast<std::size_t>(jc.parent_part)]->crossings(at, 1));
+      jc.ball_held = !hit.empty();
+    }
+    if (!jc.ball_held)
+      problems->push_back(
+          fmt::format("ball {} -> {} can leave its socket", j.parent_name, j.child_name));
+  }
+  if (in.options.sweeps) {
+    const Sets sets = split_sets(in.parts, in.tree.moving[i]);
+    HC_ASSIGN_OR_RETURN(const geometry::MeshProximity fixed,
+                        geometry::MeshProximity::build(sets.fixed));
+    for (const Eigen::Matrix3d& rot : sweep_rotations(j, in.options.sweep_step_rad)) {
+      const Eigen::Isometry3d pose = rotation_about(j.centre, rot);
+      ++jc.sweep_poses;
+      HC_ASSIGN_OR_RETURN(const auto hits, fixed.crossings(moved(sets.moving, pose), 64));
+      std::vector<Eigen::Vector3d> bumps;
+      for (const auto& b : in.hulls[i].bumps) bumps.push_back(pose * b);
+      if (real_crossing(hits, bumps, in.bump_zone)) ++jc.sweep_collisions;
+    }
+    if (jc.sweep_collisions > 0)
+      problems->push_back(fmt::format("joint {} -> {}: {} of {} range poses collide",
+                                      j.parent_name, j.child_name, jc.sweep_collisions,
+                                      jc.sweep_poses));
+  }
+  return jc;
+}
+
+// Forward kinematics over the part tree for one frame: root fixed, each child turned about its
+// joint by the links' relative rotation, clamped to the joint's range.
+std::vector<Eigen::Isometry3d> frame_poses(const PartTree& tree, const std::vector<Joint>& joints,
+                                           std::size_t num_parts,
+                                           const std::vector<Eigen::Isometry3d>& frame) {
+  std::vector<Eigen::Isometry3d> pose(num_parts, Eigen::Isometry3d::Identity());
+  std::vector<char> done(num_parts, 0);
+  done[static_cast<std::size_t>(tree.root)] = 1;
+  for (bool progress_made = true; progress_made;) {
+    progress_made = false;
+    for (std::size_t i = 0; i < joints.size(); ++i) {
+      const int pp = tree.joint_parent_part[i], cp = tree.joint_child_part[i];
+      if (joints[i].excluded || pp < 0 || cp < 0 || !done[static_cast<std::size_t>(pp)] ||
+          done[static_cast<std::size_t>(cp)])
+        continue;
+      const Eigen::Matrix3d rel =
+          frame[static_cast<std::size_t>(joints[i].parent_link)].linear().transpose() *
+          frame[static_cast<std::size_t>(joints[i].child_link)].linear();
+      pose[static_cast<std::size_t>(cp)] =
+          pose[static_cast<std::size_t>(pp)] *
+          rotation_about(joints[i].centre, clamp_to_range(joints[i], rel));
+      done[static_cast<std::size_t>(cp)] = 1;
+      progress_made = true;
+    }
+  }
+  return pose;
+}
+
+// One clip replayed on the rigid parts (at most options.max_frames_per_clip frames): the share
+// of frames in which no two parts cross, and the pairs that did.
+Result<ClipReplay> replay_clip(const std::vector<CarvedPart>& parts,
+                               const std::vector<Joint>& joints,
+                               const std::vector<JointHull>& hulls, const PartTree& tree,
+                               const std::vector<std::vector<Eigen::Isometry3d>>& frames,
+                               const std::string& name, int max_frames, double bump_zone) {
+  ClipReplay replay;
+  replay.clip = name;
+  const int n = static_cast<int>(frames.size());
+  const int stride = std::max(1, n / max_frames);
+  std::set<std::string> pairs_seen;
+  for (int f = 0; f < n; f += stride) {
+    const std::vector<Eigen::Isometry3d> pose =
+        frame_poses(tree, joints, parts.size(), frames[static_cast<std::size_t>(f)]);
+    std::vector<Eigen::Vector3d> bumps;
+    for (std::size_t i = 0; i < joints.size(); ++i)
+      if (!joints[i].excluded && tree.joint_child_part[i] >= 0)
+        for (const auto& b : hulls[i].bumps)
+          bumps.push_back(pose[static_cast<std::size_t>(tree.joint_child_part[i])] * b);
+    bool collided = false;
+    std::vector<TriangleMesh> posed;
+    for (std::size_t p = 0; p < parts.size(); ++p) posed.push_back(moved(parts[p].mesh, pose[p]));
+    for (std::size_t a = 0; a < parts.size(); ++a)
+      for (std::size_t b = a + 1; b < parts.size(); ++b) {
+        const Eigen::AlignedBox3d ba(posed[a].vertices.colwise().minCoeff().transpose(),
+                                     posed[a].vertices.colwise().maxCoeff().transpose());
+        const Eigen::AlignedBox3d bb(posed[b].vertices.colwise().minCoeff().transpose(),
+                                     posed[b].vertices.colwise().maxCoeff().transpose());
+        if (!ba.intersects(bb)) continue;
+        HC_ASSIGN_OR_RETURN(const geometry::MeshProximity pb,
+                            geometry::MeshProximity::build(posed[b]));
+        HC_ASSIGN_OR_RETURN(const auto hits, pb.crossings(posed[a], 64));
+        if (real_crossing(hits, bumps, bump_zone)) {
+          collided = true;
+          pairs_seen.insert(parts[a].name + "/" + parts[b].name);
+        }
+      }
+    ++replay.frames;
+    if (!collided) ++replay.collision_free;
+  }
+  replay.share = replay.frames > 0 ? double(replay.collision_free) / replay.frames : 1.0;
+  replay.colliding_pairs.assign(pairs_seen.begin(), pairs_seen.end());
+  return replay;
+}
+
+}  // namespace
+
 Result<VerificationReport> verify_articulation(const std::vector<CarvedPart>& parts,
                                                const std::vector<Joint>& joints,
                                                const std::vector<JointHull>& hulls,
@@ -146,159 +328,33 @@ Result<VerificationReport> verify_articulation(const std::vector<CarvedPart>& pa
   VerificationReport r;
   const double d = options.clearance_m;
   ProgressTask task(progress, "verification", parts.size() + joints.size());
-  // Parts.
-  r.parts_valid = !parts.empty();
-  for (const CarvedPart& p : parts) {
-    fabrication::MeshCheckOptions check;
-    check.check_self_intersections = options.check_self_intersections;
-    HC_ASSIGN_OR_RETURN(const fabrication::MeshCheckReport c, fabrication::check_mesh(p.mesh, check));
-    PartCheck pc{p.name, c.closed, c.manifold,
-                 c.self_intersections_checked ? c.self_intersecting_pairs : -1, c.volume};
-    if (!c.closed || !c.manifold || pc.self_intersecting_pairs > 0) {
-      r.parts_valid = false;
-      r.problems.push_back(fmt::format("part {} is not a valid solid", p.name));
-    }
-    r.parts.push_back(pc);
-    task.advance();
-  }
-  int accepted = 0;
-  for (const Joint& j : joints) accepted += j.excluded ? 0 : 1;
-  r.expected_parts = accepted + 1;
-  if (static_cast<int>(parts.size()) != r.expected_parts)
-    r.problems.push_back(fmt::format("{} parts for {} joints (a tree has {})", parts.size(),
-                                     accepted, r.expected_parts));
-  // Clearance between parts.
+  HC_RETURN_IF_ERROR(check_parts(parts, joints, options, &task, &r));
   std::vector<std::unique_ptr<geometry::MeshProximity>> trees;
   for (const CarvedPart& p : parts) {
     HC_ASSIGN_OR_RETURN(geometry::MeshProximity t, geometry::MeshProximity::build(p.mesh));
     trees.push_back(std::make_unique<geometry::MeshProximity>(std::move(t)));
   }
-  std::vector<Eigen::Vector3d> all_bumps;
   double bump_zone = 0.0;
   for (std::size_t i = 0; i < joints.size(); ++i)
-    if (!joints[i].excluded && i < hulls.size()) {
-      for (const auto& b : hulls[i].bumps) all_bumps.push_back(b);
+    if (!joints[i].excluded && i < hulls.size())
       bump_zone = std::max(bump_zone, 1.2 * (hulls[i].bump_radius_m + d));
-    }
-  for (std::size_t a = 0; a < parts.size(); ++a)
-    for (std::size_t b = a + 1; b < parts.size(); ++b) {
-      HC_ASSIGN_OR_RETURN(const geometry::ClosestApproach c,
-                          trees[b]->closest_approach(parts[a].mesh, 2 * d));
-      if (c.found && (r.min_part_distance_m < 0 || c.distance < r.min_part_distance_m)) {
-        r.min_part_distance_m = c.distance;
-        r.closest_parts = parts[a].name + "/" + parts[b].name;
-      }
-    }
-  if (r.min_part_distance_m >= 0 && r.min_part_distance_m < 0.99 * d)
-    r.problems.push_back(fmt::format("parts {} are {:.3f} mm apart (clearance {:.3f} mm)",
-                                     r.closest_parts, r.min_part_distance_m * 1e3, d * 1e3));
+  HC_RETURN_IF_ERROR(check_clearance(parts, trees, d, &r));
 
   HC_ASSIGN_OR_RETURN(const PartTree tree, part_tree(parts, joints));
+  const JointCheckInput in{parts, trees, hulls, tree, options, bump_zone};
   for (std::size_t i = 0; i < joints.size(); ++i) {
-    const Joint& j = joints[i];
-    if (j.excluded) continue;
+    if (joints[i].excluded) continue;
     task.advance();
-    JointCheck jc;
-    jc.joint = static_cast<int>(i);
-    jc.parent_part = tree.joint_parent_part[i];
-    jc.child_part = tree.joint_child_part[i];
-    if (jc.parent_part < 0 || jc.child_part < 0 || jc.parent_part == jc.child_part) {
-      r.problems.push_back(fmt::format("joint {} -> {} did not separate its sides",
-                                       j.parent_name, j.child_name));
-      r.joints.push_back(jc);
-      continue;
-    }
-    if (j.type == JointType::kBall) {
-      // Pull a ball (radius r' less a hair) out along n: the lip must stop it.
-      jc.ball_held = false;
-      const TriangleMesh ball = sphere_mesh(j.ball.ball_radius * 0.995, 32, Facet::kInscribed);
-      for (double t = j.ball.r / 16; t <= 2 * j.ball.r && !jc.ball_held; t += j.ball.r / 16) {
-        TriangleMesh at = ball;
-        at.vertices.rowwise() += (j.centre + t * j.n).transpose();
-        HC_ASSIGN_OR_RETURN(const auto hit, trees[static_cast<std::size_t>(jc.parent_part)]->crossings(at, 1));
-        jc.ball_held = !hit.empty();
-      }
-      if (!jc.ball_held)
-        r.problems.push_back(fmt::format("ball {} -> {} can leave its socket", j.parent_name, j.child_name));
-    }
-    if (options.sweeps) {
-      const Sets sets = split_sets(parts, tree.moving[i]);
-      HC_ASSIGN_OR_RETURN(const geometry::MeshProximity fixed, geometry::MeshProximity::build(sets.fixed));
-      for (const Eigen::Matrix3d& rot : sweep_rotations(j, options.sweep_step_rad)) {
-        const Eigen::Isometry3d pose = rotation_about(j.centre, rot);
-        ++jc.sweep_poses;
-        HC_ASSIGN_OR_RETURN(const auto hits, fixed.crossings(moved(sets.moving, pose), 64));
-        std::vector<Eigen::Vector3d> bumps;
-        for (const auto& b : hulls[i].bumps) bumps.push_back(pose * b);
-        if (real_crossing(hits, bumps, bump_zone)) ++jc.sweep_collisions;
-      }
-      if (jc.sweep_collisions > 0)
-        r.problems.push_back(fmt::format("joint {} -> {}: {} of {} range poses collide",
-                                         j.parent_name, j.child_name, jc.sweep_collisions,
-                                         jc.sweep_poses));
-    }
+    HC_ASSIGN_OR_RETURN(JointCheck jc, check_joint(in, joints[i], i, &r.problems));
     r.joints.push_back(jc);
   }
 
-  // Clip replay on the rigid parts.
   int frames_total = 0, free_total = 0;
   if (options.replay && motion != nullptr) {
     for (std::size_t c = 0; c < clips.size() && c < motion->transforms.size(); ++c) {
-      ClipReplay replay;
-      replay.clip = clips[c].name;
-      const auto& frames = motion->transforms[c];
-      const int n = static_cast<int>(frames.size());
-      const int stride = std::max(1, n / options.max_frames_per_clip);
-      std::set<std::string> pairs_seen;
-      for (int f = 0; f < n; f += stride) {
-        // Forward kinematics over the part tree: root fixed, each child turned about its joint.
-        std::vector<Eigen::Isometry3d> pose(parts.size(), Eigen::Isometry3d::Identity());
-        std::vector<char> done(parts.size(), 0);
-        done[static_cast<std::size_t>(tree.root)] = 1;
-        for (bool progress_made = true; progress_made;) {
-          progress_made = false;
-          for (std::size_t i = 0; i < joints.size(); ++i) {
-            const int pp = tree.joint_parent_part[i], cp = tree.joint_child_part[i];
-            if (joints[i].excluded || pp < 0 || cp < 0 || !done[static_cast<std::size_t>(pp)] ||
-                done[static_cast<std::size_t>(cp)])
-              continue;
-            const auto& fr = frames[static_cast<std::size_t>(f)];
-            const Eigen::Matrix3d rel = fr[static_cast<std::size_t>(joints[i].parent_link)].linear().transpose() *
-                                        fr[static_cast<std::size_t>(joints[i].child_link)].linear();
-            pose[static_cast<std::size_t>(cp)] =
-                pose[static_cast<std::size_t>(pp)] *
-                rotation_about(joints[i].centre, clamp_to_range(joints[i], rel));
-            done[static_cast<std::size_t>(cp)] = 1;
-            progress_made = true;
-          }
-        }
-        std::vector<Eigen::Vector3d> bumps;
-        for (std::size_t i = 0; i < joints.size(); ++i)
-          if (!joints[i].excluded && tree.joint_child_part[i] >= 0)
-            for (const auto& b : hulls[i].bumps)
-              bumps.push_back(pose[static_cast<std::size_t>(tree.joint_child_part[i])] * b);
-        bool collided = false;
-        std::vector<TriangleMesh> posed;
-        for (std::size_t p = 0; p < parts.size(); ++p) posed.push_back(moved(parts[p].mesh, pose[p]));
-        for (std::size_t a = 0; a < parts.size(); ++a)
-          for (std::size_t b = a + 1; b < parts.size(); ++b) {
-            const Eigen::AlignedBox3d ba(posed[a].vertices.colwise().minCoeff().transpose(),
-                                         posed[a].vertices.colwise().maxCoeff().transpose());
-            const Eigen::AlignedBox3d bb(posed[b].vertices.colwise().minCoeff().transpose(),
-                                         posed[b].vertices.colwise().maxCoeff().transpose());
-            if (!ba.intersects(bb)) continue;
-            HC_ASSIGN_OR_RETURN(const geometry::MeshProximity pb, geometry::MeshProximity::build(posed[b]));
-            HC_ASSIGN_OR_RETURN(const auto hits, pb.crossings(posed[a], 64));
-            if (real_crossing(hits, bumps, bump_zone)) {
-              collided = true;
-              pairs_seen.insert(parts[a].name + "/" + parts[b].name);
-            }
-          }
-        ++replay.frames;
-        if (!collided) ++replay.collision_free;
-      }
-      replay.share = replay.frames > 0 ? double(replay.collision_free) / replay.frames : 1.0;
-      replay.colliding_pairs.assign(pairs_seen.begin(), pairs_seen.end());
+      HC_ASSIGN_OR_RETURN(ClipReplay replay,
+                          replay_clip(parts, joints, hulls, tree, motion->transforms[c],
+                                      clips[c].name, options.max_frames_per_clip, bump_zone));
       frames_total += replay.frames;
       free_total += replay.collision_free;
       r.clips.push_back(std::move(replay));
