@@ -158,9 +158,14 @@ Result<ArticulateResult> articulate(const SkinnedCharacter& c, const ArticulateO
     j.centre_from_rig_m = -1;
     if (t.degenerate) {
       j.excluded = true;
-      j.reason = fmt::format("degenerate transition: lambda3/lambda2 = {:.2f} > f = {:.2f} ({} "
-                             "points): the links are not joined around a loop",
-                             t.ratio, o.transitions.degenerate_ratio, t.points.size());
+      j.reason =
+          static_cast<int>(t.points.size()) < o.transitions.min_points
+              ? fmt::format("degenerate transition: {} transition points (fewer than {}): the "
+                            "links barely touch",
+                            t.points.size(), o.transitions.min_points)
+              : fmt::format("degenerate transition: lambda3/lambda2 = {:.2f} > f = {:.2f} ({} "
+                            "points): the links are not joined around a loop",
+                            t.ratio, o.transitions.degenerate_ratio, t.points.size());
     } else {
       const MedialCentre m =
           medial_centre(t.centre, t.normal, 1.5 * std::sqrt(2 * t.lambdas(2)), depth);
