@@ -126,17 +126,12 @@ Result<TetMesh> mesh_input(const TetmeshArgs& args, meshing::TetrahedralizeSumma
     return m;
   }
   HC_ASSIGN_OR_RETURN(TriangleMesh surface, read_mesh(args.input));
-  // TetGen 1.5.0 double-frees on its own error path (e.g. self-intersecting facets), so a
-  // surface it would reject is caught here first with the printability check (CGAL).
+  // The enclosed volume, for the tet-count estimate (meshing::tetrahedralize refuses a
+  // self-intersecting surface itself).
   fabrication::MeshCheckOptions check;
-  check.max_self_intersecting_pairs = 1;
+  check.check_self_intersections = false;
   HC_ASSIGN_OR_RETURN(const fabrication::MeshCheckReport report,
                       fabrication::check_mesh(surface, check));
-  if (report.self_intersecting_pairs > 0)
-    return invalid_argument(
-        fmt::format("{}: the surface intersects itself; TetGen needs a closed surface without "
-                    "self-intersections (try `hardcopy mesh repair --resolve-self-intersections`)",
-                    args.input));
   surface.vertices *= args.scale_to_m;
   HC_RETURN_IF_ERROR(check_tet_estimate(
       args, std::abs(report.volume) * args.scale_to_m * args.scale_to_m * args.scale_to_m));

@@ -11,8 +11,10 @@
 #include <cstring>
 #include <limits>
 #include <memory>
+#include <numeric>
 
 #include "common/file_io.h"
+#include "geometry/mesh_ops.h"
 
 namespace hc::meshing {
 namespace {
@@ -258,6 +260,22 @@ Result<TetMesh> tetrahedralize(const TriangleMesh& surface, const Tetrahedralize
           "surface is not closed and consistently oriented: {} of {} edge sides have no single "
           "opposite partner (TetGen needs a closed manifold surface; try `hardcopy mesh repair`)",
           bad, edges.size()));
+  }
+  // ... and a self-intersecting surface (TetGen's own check then takes the crashing path: a double
+  // free on ../shared/data/meshes/candleStand.stl). CGAL's exact test through the geometry target;
+  // the first intersecting pair settles it.
+  {
+    geometry::SelfIntersectionQuery query;
+    query.triangles.resize(static_cast<std::size_t>(nf));
+    std::iota(query.triangles.begin(), query.triangles.end(), 0);
+    query.is_polygon_mesh = true;  // closed, manifold and consistently oriented (checked above)
+    query.max_pairs = 1;
+    HC_ASSIGN_OR_RETURN(const geometry::SelfIntersectionCount count,
+                        geometry::count_self_intersecting_pairs(surface, query));
+    if (count.pairs > 0)
+      return invalid_argument(
+          "the surface intersects itself; TetGen needs a closed surface without "
+          "self-intersections (try `hardcopy mesh repair --resolve-self-intersections`)");
   }
 
   tetgenio in;  // frees every list below in its destructor (delete[])

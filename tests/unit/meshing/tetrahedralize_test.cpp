@@ -304,6 +304,16 @@ TEST(Surface, BadSurfaces) {
     EXPECT_EQ(m.status().code(), StatusCode::kInvalidArgument);
     EXPECT_THAT(m.status().message(), HasSubstr("not closed")) << name;
   }
+  // Closed and oriented but self-intersecting (candleStand.stl: 10 intersecting pairs, see
+  // tests/unit/tools): refused here too, where TetGen 1.5.0 would free its memory twice.
+  {
+    Result<TriangleMesh> s = read_mesh(shared_data("meshes") / "candleStand.stl");
+    ASSERT_TRUE(s.ok());
+    Result<TetMesh> m = tetrahedralize(*s, o);
+    ASSERT_FALSE(m.ok());
+    EXPECT_EQ(m.status().code(), StatusCode::kInvalidArgument);
+    EXPECT_THAT(m.status().message(), HasSubstr("intersects itself"));
+  }
   box = box_surface(Eigen::Vector3d(1, 1, 1));
   std::swap(box.triangles(0, 1), box.triangles(0, 2));  // one flipped triangle
   EXPECT_THAT(tetrahedralize(box, o).status().message(), HasSubstr("not closed"));

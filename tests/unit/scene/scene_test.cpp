@@ -307,6 +307,14 @@ TEST(SimulateCli, NonsenseIsRefusedNamingTheRealProblem) {
   r = run_scene("stiff.json", stiff);
   EXPECT_EQ(r.exit_code, 2) << r.out;  // was "contact stiffness -nan"
   EXPECT_NE(r.out.find("Young's modulus must be in (0, 1e+13] Pa"), std::string::npos) << r.out;
+
+  // A closed mesh specimen that intersects itself (issue 12: SIGSEGV inside TetGen before).
+  auto tangled = base();
+  tangled["specimen"] = {{"mesh", HARDCOPY_SHARED_DATA "/meshes/candleStand.stl"},
+                         {"scale_to_m", 0.001}};
+  r = run_scene("tangled.json", tangled);
+  EXPECT_EQ(r.exit_code, 2) << r.out;
+  EXPECT_NE(r.out.find("the surface intersects itself"), std::string::npos) << r.out;
 }
 
 TEST(ValidateFemCli, PrintsEveryCaseAndFailsWhenACaseIsOutOfTolerance) {

@@ -76,11 +76,10 @@ struct TetrahedralizeSummary {
 
 // Tetrahedralizes the region bounded by a closed, consistently oriented triangle surface. Node
 // markers: 1 on the boundary, 0 inside. Fails with kInvalidArgument on an empty surface, bad
-// indices, non-finite coordinates, an open / non-manifold / misoriented surface (checked here,
-// before TetGen) or a surface TetGen rejects (e.g. self-intersecting; TetGen's reason is quoted),
-// kFailedPrecondition when TetGen produces no tets. Caveat: TetGen 1.5.0 frees its memory twice on
-// its own error path, so a self-intersecting input may still crash inside TetGen; run
-// `hardcopy mesh check` / `mesh repair` on untrusted surfaces first.
+// indices, non-finite coordinates, an open / non-manifold / misoriented or self-intersecting
+// surface (checked here, before TetGen: TetGen 1.5.0 frees its memory twice on its own error
+// path) or a surface TetGen rejects otherwise (its reason is quoted), kFailedPrecondition when
+// TetGen produces no tets.
 Result<TetMesh> tetrahedralize(const TriangleMesh& surface, const TetrahedralizeOptions& options,
                                TetrahedralizeSummary* summary = nullptr);
 
