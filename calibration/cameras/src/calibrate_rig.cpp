@@ -110,72 +110,148 @@ struct ReprojectionCost {
   bool fix_aspect_;
 };
 
-}  // namespace
+// ---- the steps of calibrate_rig ----
 
-Result<CalibrationSummary> calibrate_rig(const std::vector<CameraObservations>& cameras,
-                                         const BoardSpec& board,
-                                         const CalibrationOptions& options) {
+Status check_rig_input(const std::vector<CameraObservations>& cameras, const BoardSpec& board) {
   if (cameras.empty()) return invalid_argument("calibrate_rig: no cameras");
   if (board.corner_count() <= 0) return invalid_argument("calibrate_rig: empty board");
-  {
-    std::set<std::string> names;
-    for (const CameraObservations& c : cameras)
-      if (c.name.empty() || !names.insert(c.name).second)
-        return invalid_argument("calibrate_rig: camera name '" + c.name + "' empty or repeated");
-  }
-  const auto t_init = Clock::now();
+  std::set<std::string> names;
+  for (const CameraObservations& c : cameras)
+    if (c.name.empty() || !names.insert(c.name).second)
+      return invalid_argument("calibrate_rig: camera name '" + c.name + "' empty or repeated");
+  return {};
+}
+
+// 1. Single-camera calibrations (OpenCV) give the intrinsics and camera_from_board per view.
+Status calibrate_each_camera(const std::vector<CameraObservations>& cameras, const BoardSpec& board,
+                             const CalibrationOptions& options,
+                             std::vector<OpenCvCalibration>& single,
+                             std::vector<std::map<int, Pose>>& cam_from_board) {
   const std::size_t nc = cameras.size();
-  CalibrationSummary s;
-
-  // 1. Single-camera calibrations (OpenCV) give the intrinsics and camera_from_board per view.
-  std::vector<OpenCvCalibration> single(nc);
-  std::vector<std::map<int, Pose>> cam_from_board(nc);
-  {
-    ProgressTask task(options.progress, "intrinsics per camera", nc);
-    for (std::size_t c = 0; c < nc; ++c) {
-      HC_ASSIGN_OR_RETURN(single[c], run_opencv(cameras[c], board, options, kInitViews));
-      for (std::size_t i = 0; i < single[c].views.size(); ++i)
-        cam_from_board[c][single[c].views[i]] =
-            pose_from_rvec(single[c].rvecs[i], single[c].tvecs[i]);
-      task.advance();
-    }
+  ProgressTask task(options.progress, "intrinsics per camera", nc);
+  for (std::size_t c = 0; c < nc; ++c) {
+    HC_ASSIGN_OR_RETURN(single[c], run_opencv(cameras[c], board, options, kInitViews));
+    for (std::size_t i = 0; i < single[c].views.size(); ++i)
+      cam_from_board[c][single[c].views[i]] =
+          pose_from_rvec(single[c].rvecs[i], single[c].tvecs[i]);
+    task.advance();
   }
+  return {};
+}
 
-  // 2. Visibility graph: cameras are nodes, an edge joins two cameras that saw the same board pose
-  // (weight = shared views). A maximum spanning tree from camera 0 (Prim) chains relative poses,
-  // each averaged over the shared views.
-  std::vector<Pose> cam_from_rig(nc);
-  // A chessboard with cols + rows even looks the same after a half turn, so cameras may number
-  // its corners in opposite orders (board.h, canonical_order); `flip` is that half turn in the
-  // board frame (corner id k <-> N-1-k).
-  const bool symmetric =
-      board.kind == BoardKind::kChessboard && (board.cols + board.rows) % 2 == 0 && nc > 1;
+// A chessboard with cols + rows even looks the same after a half turn, so cameras may number its
+// corners in opposite orders (board.h, canonical_order); `flip` is that half turn in the board
+// frame (corner id k <-> N-1-k).
+struct BoardSymmetry {
+  bool symmetric = false;
   Pose flip;
-  flip.R = Eigen::Vector3d(-1.0, -1.0, 1.0).asDiagonal();
-  flip.t =
+};
+
+BoardSymmetry board_symmetry(const BoardSpec& board, std::size_t nc) {
+  BoardSymmetry b;
+  b.symmetric =
+      board.kind == BoardKind::kChessboard && (board.cols + board.rows) % 2 == 0 && nc > 1;
+  b.flip.R = Eigen::Vector3d(-1.0, -1.0, 1.0).asDiagonal();
+  b.flip.t =
       Eigen::Vector3d((board.cols - 1) * board.square_m, (board.rows - 1) * board.square_m, 0.0);
-  std::vector<std::size_t> placement = {0};
-  std::vector<std::set<int>> flipped(nc);
-  std::vector<bool> placed(nc, false);
-  std::vector<int> parent(nc, -1), shared_with_parent(nc, 0);
-  placed[0] = true;
-  for (std::size_t step = 1; step < nc; ++step) {
-    int best_a = -1, best_b = -1, best_n = 0;
-    for (std::size_t a = 0; a < nc; ++a) {
-      if (!placed[a]) continue;
-      for (std::size_t b = 0; b < nc; ++b) {
-        if (placed[b]) continue;
-        int n = 0;
-        for (const auto& [view, pose] : cam_from_board[b])
-          n += cam_from_board[a].count(view) ? 1 : 0;
-        if (n > best_n) {
-          best_n = n;
-          best_a = static_cast<int>(a);
-          best_b = static_cast<int>(b);
-        }
+  return b;
+}
+
+// An edge of the visibility graph: cameras a and b saw the board in `shared` same views.
+struct Edge {
+  int a = -1, b = -1, shared = 0;
+};
+
+// The edge with most shared views from a placed camera to one not yet placed (b < 0: none).
+Edge strongest_edge(const std::vector<std::map<int, Pose>>& cam_from_board,
+                    const std::vector<bool>& placed) {
+  Edge best;
+  const std::size_t nc = cam_from_board.size();
+  for (std::size_t a = 0; a < nc; ++a) {
+    if (!placed[a]) continue;
+    for (std::size_t b = 0; b < nc; ++b) {
+      if (placed[b]) continue;
+      int n = 0;
+      for (const auto& [view, pose] : cam_from_board[b]) n += cam_from_board[a].count(view) ? 1 : 0;
+      if (n > best.shared) {
+        best.shared = n;
+        best.a = static_cast<int>(a);
+        best.b = static_cast<int>(b);
       }
     }
-    if (best_b < 0) {
+  }
+  return best;
+}
+
+// A half-turn-symmetric board: each shared view gives two candidate relative poses (`rel` and
+// `rel_flipped`); keep the candidate most views agree with (rotation within 5 degrees, translation
+// within 10 %) and, per view, whichever of its two candidates is nearer to it.
+std::vector<Pose> choose_board_orientations(const std::vector<Pose>& rel,
+                                            const std::vector<Pose>& rel_flipped) {
+  std::vector<Pose> all = rel;
+  all.insert(all.end(), rel_flipped.begin(), rel_flipped.end());
+  const auto close = [](const Pose& p, const Pose& q) {
+    const double angle = Eigen::AngleAxisd(p.R * q.R.transpose()).angle();
+    return angle < 5.0 * 3.14159265358979 / 180.0 &&
+           (p.t - q.t).norm() < 0.1 * std::max(p.t.norm(), q.t.norm()) + 1e-9;
+  };
+  std::size_t best = 0;
+  int best_votes = -1;
+  for (std::size_t i = 0; i < all.size(); ++i) {
+    int votes = 0;
+    for (const Pose& q : all) votes += close(all[i], q) ? 1 : 0;
+    if (votes > best_votes) {
+      best_votes = votes;
+      best = i;
+    }
+  }
+  std::vector<Pose> chosen;
+  for (std::size_t i = 0; i < rel.size(); ++i) {
+    const double d0 = Eigen::AngleAxisd(rel[i].R * all[best].R.transpose()).angle();
+    const double d1 = Eigen::AngleAxisd(rel_flipped[i].R * all[best].R.transpose()).angle();
+    chosen.push_back(d0 <= d1 ? rel[i] : rel_flipped[i]);
+  }
+  return chosen;
+}
+
+// b_from_a in each view both cameras saw.
+std::vector<Pose> relative_poses(const std::map<int, Pose>& a_from_board,
+                                 const std::map<int, Pose>& b_from_board,
+                                 const BoardSymmetry& board) {
+  std::vector<Pose> rel;          // b_from_a
+  std::vector<Pose> rel_flipped;  // the same with b's corners numbered the other way round
+  for (const auto& [view, pose_b] : b_from_board) {
+    const auto it = a_from_board.find(view);
+    if (it == a_from_board.end()) continue;
+    rel.push_back(pose_b * it->second.inverse());
+    rel_flipped.push_back(pose_b * board.flip * it->second.inverse());
+  }
+  return board.symmetric ? choose_board_orientations(rel, rel_flipped) : rel;
+}
+
+// The cameras placed one at a time along the spanning tree, camera 0 first.
+struct CameraTree {
+  std::vector<Pose> cam_from_rig;
+  std::vector<std::size_t> placement = {0};
+  std::vector<int> parent, shared_with_parent;
+};
+
+// 2. Visibility graph: cameras are nodes, an edge joins two cameras that saw the same board pose
+// (weight = shared views). A maximum spanning tree from camera 0 (Prim) chains relative poses,
+// each averaged over the shared views.
+Result<CameraTree> chain_cameras(const std::vector<CameraObservations>& cameras,
+                                 const std::vector<std::map<int, Pose>>& cam_from_board,
+                                 const BoardSymmetry& board) {
+  const std::size_t nc = cameras.size();
+  CameraTree tree;
+  tree.cam_from_rig.resize(nc);
+  tree.parent.assign(nc, -1);
+  tree.shared_with_parent.assign(nc, 0);
+  std::vector<bool> placed(nc, false);
+  placed[0] = true;
+  for (std::size_t step = 1; step < nc; ++step) {
+    const Edge e = strongest_edge(cam_from_board, placed);
+    if (e.b < 0) {
       std::string missing;
       for (std::size_t b = 0; b < nc; ++b)
         if (!placed[b]) missing += (missing.empty() ? "'" : ", '") + cameras[b].name + "'";
@@ -184,93 +260,109 @@ Result<CalibrationSummary> calibrate_rig(const std::vector<CameraObservations>& 
                       "camera connected to it: no chain of shared views to calibrate them",
                       missing, cameras[0].name));
     }
-    const auto a = static_cast<std::size_t>(best_a), b = static_cast<std::size_t>(best_b);
-    std::vector<Pose> rel;          // b_from_a
-    std::vector<Pose> rel_flipped;  // the same with b's corners numbered the other way round
-    for (const auto& [view, pose_b] : cam_from_board[b]) {
-      const auto it = cam_from_board[a].find(view);
-      if (it == cam_from_board[a].end()) continue;
-      rel.push_back(pose_b * it->second.inverse());
-      rel_flipped.push_back(pose_b * flip * it->second.inverse());
-    }
-    if (symmetric) {
-      // A half-turn-symmetric board: each shared view gives two candidate relative poses; keep
-      // the candidate most views agree with (rotation within 5 degrees, translation within 10 %)
-      // and, per view, whichever of its two candidates is nearer to it.
-      std::vector<Pose> all = rel;
-      all.insert(all.end(), rel_flipped.begin(), rel_flipped.end());
-      const auto close = [](const Pose& p, const Pose& q) {
-        const double angle = Eigen::AngleAxisd(p.R * q.R.transpose()).angle();
-        return angle < 5.0 * 3.14159265358979 / 180.0 &&
-               (p.t - q.t).norm() < 0.1 * std::max(p.t.norm(), q.t.norm()) + 1e-9;
-      };
-      std::size_t best = 0;
-      int best_votes = -1;
-      for (std::size_t i = 0; i < all.size(); ++i) {
-        int votes = 0;
-        for (const Pose& q : all) votes += close(all[i], q) ? 1 : 0;
-        if (votes > best_votes) {
-          best_votes = votes;
-          best = i;
-        }
-      }
-      std::vector<Pose> chosen;
-      for (std::size_t i = 0; i < rel.size(); ++i) {
-        const double d0 = Eigen::AngleAxisd(rel[i].R * all[best].R.transpose()).angle();
-        const double d1 = Eigen::AngleAxisd(rel_flipped[i].R * all[best].R.transpose()).angle();
-        chosen.push_back(d0 <= d1 ? rel[i] : rel_flipped[i]);
-      }
-      rel = chosen;
-    }
-    cam_from_rig[b] = average(rel) * cam_from_rig[a];
-    placement.push_back(b);
+    const auto a = static_cast<std::size_t>(e.a), b = static_cast<std::size_t>(e.b);
+    const std::vector<Pose> rel = relative_poses(cam_from_board[a], cam_from_board[b], board);
+    tree.cam_from_rig[b] = average(rel) * tree.cam_from_rig[a];
+    tree.placement.push_back(b);
     placed[b] = true;
-    parent[b] = best_a;
-    shared_with_parent[b] = best_n;
+    tree.parent[b] = e.a;
+    tree.shared_with_parent[b] = e.shared;
   }
+  return tree;
+}
 
-  // 3. Board poses in the rig frame: from the first camera (in placement order) that saw each
-  // view; on a symmetric board the later cameras' corner order is matched to it.
-  std::map<int, std::array<double, 6>> view_params;
-  for (std::size_t c : placement)
+// 3. Board poses in the rig frame (rig_from_board parameters per view): from the first camera (in
+// placement order) that saw each view; on a symmetric board the later cameras' corner order is
+// matched to it (their cam_from_board turned by the half turn). Returns the views each camera
+// numbers the other way round.
+std::vector<std::set<int>> board_poses_in_rig(const CameraTree& tree, const BoardSymmetry& board,
+                                              std::vector<std::map<int, Pose>>& cam_from_board,
+                                              std::map<int, std::array<double, 6>>& view_params) {
+  std::vector<std::set<int>> flipped(cam_from_board.size());
+  for (std::size_t c : tree.placement)
     for (auto& [view, pose] : cam_from_board[c]) {
-      const Pose rig_from_board = cam_from_rig[c].inverse() * pose;
+      const Pose rig_from_board = tree.cam_from_rig[c].inverse() * pose;
       const auto it = view_params.find(view);
       if (it == view_params.end()) {
         std::array<double, 6> p;
         to_params(rig_from_board, p.data());
         view_params[view] = p;
-      } else if (symmetric) {
+      } else if (board.symmetric) {
         const Pose known = from_params(it->second.data());
-        const Pose other = rig_from_board * flip;
+        const Pose other = rig_from_board * board.flip;
         if (Eigen::AngleAxisd(other.R * known.R.transpose()).angle() <
             Eigen::AngleAxisd(rig_from_board.R * known.R.transpose()).angle()) {
           flipped[c].insert(view);
-          pose = pose * flip;
+          pose = pose * board.flip;
         }
       }
     }
+  return flipped;
+}
 
-  // 4. The joint problem.
-  std::vector<std::array<double, kIntrinsics>> intr(nc);
-  std::vector<std::array<double, 6>> cam_params(nc);
-  for (std::size_t c = 0; c < nc; ++c) {
-    const OpenCvCalibration& o = single[c];
-    intr[c] = {o.K.at<double>(0, 0), o.K.at<double>(1, 1), o.K.at<double>(0, 2),
-               o.K.at<double>(1, 2), o.dist.at<double>(0), o.dist.at<double>(1),
-               o.dist.at<double>(2), o.dist.at<double>(3), o.dist.at<double>(4)};
-    to_params(cam_from_rig[c], cam_params[c].data());
-  }
-  ceres::Problem::Options problem_options;
-  problem_options.enable_fast_removal = false;
-  ceres::Problem problem(problem_options);
+ceres::Problem::Options joint_problem_options() {
+  ceres::Problem::Options o;
+  o.enable_fast_removal = false;
+  return o;
+}
+
+// 4. The joint problem: per camera its intrinsics and camera_from_rig, per view rig_from_board,
+// one residual per corner seen. Ceres holds pointers to the parameter blocks kept here.
+struct JointProblem {
   struct Residual {
     std::size_t camera;
     int view;
     ceres::ResidualBlockId id;
   };
+  std::vector<std::array<double, kIntrinsics>> intr;
+  std::vector<std::array<double, 6>> cam_params;
+  std::map<int, std::array<double, 6>> view_params;
+  std::vector<int> fixed;  // intrinsics held constant, the same for every camera
+  ceres::Problem problem{joint_problem_options()};
   std::vector<Residual> residuals;
+
+  std::vector<const Residual*> all() const {
+    std::vector<const Residual*> out;
+    for (const Residual& r : residuals) out.push_back(&r);
+    return out;
+  }
+  double sum_squares(const std::vector<const Residual*>& set) {
+    double sum = 0.0;
+    for (const Residual* r : set) {
+      double res[2];
+      const std::array<double, 6>& vp = view_params[r->view];
+      const double* blocks[3] = {intr[r->camera].data(), cam_params[r->camera].data(), vp.data()};
+      problem.GetCostFunctionForResidualBlock(r->id)->Evaluate(blocks, res, nullptr);
+      sum += res[0] * res[0] + res[1] * res[1];
+    }
+    return sum;
+  }
+  double rms(const std::vector<const Residual*>& set) {
+    const double sum = sum_squares(set);
+    return set.empty() ? 0.0 : std::sqrt(sum / static_cast<double>(set.size()));
+  }
+};
+
+// The starting point: each camera's OpenCV intrinsics and its pose along the tree.
+void init_joint_parameters(const std::vector<OpenCvCalibration>& single,
+                           const std::vector<Pose>& cam_from_rig, JointProblem& joint) {
+  const std::size_t nc = single.size();
+  joint.intr.resize(nc);
+  joint.cam_params.resize(nc);
   for (std::size_t c = 0; c < nc; ++c) {
+    const OpenCvCalibration& o = single[c];
+    joint.intr[c] = {o.K.at<double>(0, 0), o.K.at<double>(1, 1), o.K.at<double>(0, 2),
+                     o.K.at<double>(1, 2), o.dist.at<double>(0), o.dist.at<double>(1),
+                     o.dist.at<double>(2), o.dist.at<double>(3), o.dist.at<double>(4)};
+    to_params(cam_from_rig[c], joint.cam_params[c].data());
+  }
+}
+
+void add_corner_residuals(const std::vector<CameraObservations>& cameras, const BoardSpec& board,
+                          const CalibrationOptions& options,
+                          const std::vector<std::map<int, Pose>>& cam_from_board,
+                          const std::vector<std::set<int>>& flipped, JointProblem& joint) {
+  for (std::size_t c = 0; c < cameras.size(); ++c) {
     for (const ViewObservation& v : cameras[c].views) {
       if (!cam_from_board[c].count(v.view)) continue;  // dropped (too few corners)
       const bool flip_view = flipped[c].count(v.view) > 0;
@@ -283,43 +375,32 @@ Result<CalibrationSummary> calibrate_rig(const std::vector<CameraObservations>& 
           loss = new ceres::HuberLoss(options.loss_scale_px);
         else if (options.loss == RobustLoss::kCauchy)
           loss = new ceres::CauchyLoss(options.loss_scale_px);
-        residuals.push_back(
-            {c, v.view,
-             problem.AddResidualBlock(cost, loss, intr[c].data(), cam_params[c].data(),
-                                      view_params[v.view].data())});
+        joint.residuals.push_back({c, v.view,
+                                   joint.problem.AddResidualBlock(
+                                       cost, loss, joint.intr[c].data(), joint.cam_params[c].data(),
+                                       joint.view_params[v.view].data())});
       }
     }
   }
-  std::vector<int> fixed;
-  if (options.fix_aspect_ratio) fixed.push_back(1);
+}
+
+// The intrinsics the options fix, and camera 0's pose (it defines the rig frame).
+void hold_fixed_parameters(const CalibrationOptions& options, JointProblem& joint) {
+  if (options.fix_aspect_ratio) joint.fixed.push_back(1);
   if (options.zero_tangential) {
-    fixed.push_back(6);
-    fixed.push_back(7);
+    joint.fixed.push_back(6);
+    joint.fixed.push_back(7);
   }
-  if (options.fix_k3) fixed.push_back(8);
-  for (std::size_t c = 0; c < nc; ++c) {
-    if (options.fix_aspect_ratio) intr[c][1] = intr[c][0];
-    if (!fixed.empty())
-      problem.SetManifold(intr[c].data(), new ceres::SubsetManifold(kIntrinsics, fixed));
+  if (options.fix_k3) joint.fixed.push_back(8);
+  for (auto& intr : joint.intr) {
+    if (options.fix_aspect_ratio) intr[1] = intr[0];
+    if (!joint.fixed.empty())
+      joint.problem.SetManifold(intr.data(), new ceres::SubsetManifold(kIntrinsics, joint.fixed));
   }
-  problem.SetParameterBlockConstant(cam_params[0].data());
+  joint.problem.SetParameterBlockConstant(joint.cam_params[0].data());
+}
 
-  const auto rms_of = [&](const std::vector<const Residual*>& set) {
-    double sum = 0.0;
-    for (const Residual* r : set) {
-      double res[2];
-      const std::array<double, 6>& vp = view_params[r->view];
-      const double* blocks[3] = {intr[r->camera].data(), cam_params[r->camera].data(), vp.data()};
-      problem.GetCostFunctionForResidualBlock(r->id)->Evaluate(blocks, res, nullptr);
-      sum += res[0] * res[0] + res[1] * res[1];
-    }
-    return set.empty() ? 0.0 : std::sqrt(sum / static_cast<double>(set.size()));
-  };
-  std::vector<const Residual*> all;
-  for (const Residual& r : residuals) all.push_back(&r);
-  s.initial_joint_rms_px = rms_of(all);
-  s.init_time_s = seconds_since(t_init);
-
+Status solve_joint(const CalibrationOptions& options, JointProblem& joint, CalibrationSummary& s) {
   const auto t_solve = Clock::now();
   ceres::Solver::Options so;
   so.linear_solver_type = ceres::SPARSE_SCHUR;
@@ -335,7 +416,7 @@ Result<CalibrationSummary> calibrate_rig(const std::vector<CameraObservations>& 
     // SPARSE_SCHUR factorises through CHOLMOD, whose OpenMP team thrashes on 2 vCPUs
     // (common/openmp.h).
     SerialOpenMpScope serial_openmp;
-    ceres::Solve(so, &problem, &summary);
+    ceres::Solve(so, &joint.problem, &summary);
   }
   s.solve_time_s = seconds_since(t_solve);
   s.iterations = static_cast<int>(summary.iterations.size());
@@ -343,36 +424,42 @@ Result<CalibrationSummary> calibrate_rig(const std::vector<CameraObservations>& 
   s.termination = summary.message;
   if (!summary.IsSolutionUsable())
     return invalid_argument("joint bundle adjustment failed: " + summary.message);
+  return {};
+}
 
-  // 5. Reports.
-  s.joint_rms_px = rms_of(all);
-  s.observations = static_cast<int>(residuals.size());
-  s.board_poses = static_cast<int>(view_params.size());
+// 5. Reports: per camera, per (camera, view), and the solved rig.
+void report_cameras(const std::vector<CameraObservations>& cameras,
+                    const std::vector<OpenCvCalibration>& single, const CameraTree& tree,
+                    const CalibrationOptions& options, JointProblem& joint, CalibrationSummary& s) {
+  const std::size_t nc = cameras.size();
+  s.joint_rms_px = joint.rms(joint.all());
+  s.observations = static_cast<int>(joint.residuals.size());
+  s.board_poses = static_cast<int>(joint.view_params.size());
   std::vector<double> view_rms;
   for (std::size_t c = 0; c < nc; ++c) {
     CameraReport r;
     r.name = cameras[c].name;
     r.initial_rms_px = single[c].rms;
-    r.parent = parent[c] >= 0 ? cameras[static_cast<std::size_t>(parent[c])].name : "";
-    r.shared_views_with_parent = shared_with_parent[c];
-    std::vector<const Residual*> cam_set;
-    std::map<int, std::vector<const Residual*>> per_view;
-    for (const Residual& res : residuals)
+    r.parent = tree.parent[c] >= 0 ? cameras[static_cast<std::size_t>(tree.parent[c])].name : "";
+    r.shared_views_with_parent = tree.shared_with_parent[c];
+    std::vector<const JointProblem::Residual*> cam_set;
+    std::map<int, std::vector<const JointProblem::Residual*>> per_view;
+    for (const JointProblem::Residual& res : joint.residuals)
       if (res.camera == c) {
         cam_set.push_back(&res);
         per_view[res.view].push_back(&res);
       }
-    r.rms_px = rms_of(cam_set);
+    r.rms_px = joint.rms(cam_set);
     r.points = static_cast<int>(cam_set.size());
     r.views = static_cast<int>(per_view.size());
     for (const auto& [view, set] : per_view) {
-      ViewReport v{cameras[c].name, view, static_cast<int>(set.size()), rms_of(set), false};
+      ViewReport v{cameras[c].name, view, static_cast<int>(set.size()), joint.rms(set), false};
       view_rms.push_back(v.rms_px);
       s.views.push_back(v);
     }
-    CameraModel m = model_from(cameras[c].name, cameras[c].width, cameras[c].height, intr[c].data(),
-                               options.fix_aspect_ratio);
-    const Pose p = from_params(cam_params[c].data());
+    CameraModel m = model_from(cameras[c].name, cameras[c].width, cameras[c].height,
+                               joint.intr[c].data(), options.fix_aspect_ratio);
+    const Pose p = from_params(joint.cam_params[c].data());
     m.R = p.R;
     m.t_m = p.t;
     m.rms_px = r.rms_px;
@@ -382,79 +469,105 @@ Result<CalibrationSummary> calibrate_rig(const std::vector<CameraObservations>& 
   const double med = median(view_rms);
   for (ViewReport& v : s.views) v.outlier = v.rms_px > options.outlier_factor * med;
   s.rig.joint_rms_px = nc > 1 ? s.joint_rms_px : 0.0;
+}
 
-  // 6. Standard deviations from the Ceres covariance, scaled by the residual variance
-  // sigma^2 = sum r^2 / (residuals - free parameters) as OpenCV's calibrateCameraExtended does.
-  if (options.compute_std_devs) {
-    const auto t_cov = Clock::now();
-    ProgressTask task(options.progress, "parameter covariance", 0);
-    ceres::Covariance::Options co;
-    co.algorithm_type = ceres::SPARSE_QR;  // (DENSE_SVD measured 4x slower at 600 parameters)
-    co.num_threads = std::max(1, options.threads);
-    ceres::Covariance covariance(co);
-    std::vector<std::pair<const double*, const double*>> blocks;
-    for (std::size_t c = 0; c < nc; ++c) {
-      blocks.emplace_back(intr[c].data(), intr[c].data());
-      if (c > 0) blocks.emplace_back(cam_params[c].data(), cam_params[c].data());
-    }
-    bool computed = false;
-    {
-      SerialOpenMpScope serial_openmp;  // SPARSE_QR goes through SuiteSparseQR / CHOLMOD too
-      computed = covariance.Compute(blocks, &problem);
-    }
-    if (computed) {
-      const int free_params = problem.NumParameters() - 6 - static_cast<int>(nc * fixed.size());
-      const int dof = 2 * s.observations - free_params;
-      double sq = 0.0;
-      for (const Residual* r : all) {
-        double res[2];
-        const double* b[3] = {intr[r->camera].data(), cam_params[r->camera].data(),
-                              view_params[r->view].data()};
-        problem.GetCostFunctionForResidualBlock(r->id)->Evaluate(b, res, nullptr);
-        sq += res[0] * res[0] + res[1] * res[1];
-      }
-      const double sigma2 = dof > 0 ? sq / dof : 0.0;
-      for (std::size_t c = 0; c < nc; ++c) {
-        Eigen::Matrix<double, kIntrinsics, kIntrinsics, Eigen::RowMajor> ci;
-        covariance.GetCovarianceBlock(intr[c].data(), intr[c].data(), ci.data());
-        s.cameras[c].intrinsics_std.resize(kIntrinsics);
-        for (int i = 0; i < kIntrinsics; ++i)
-          s.cameras[c].intrinsics_std[static_cast<std::size_t>(i)] =
-              std::sqrt(std::max(0.0, ci(i, i) * sigma2));
-        if (options.fix_aspect_ratio)
-          s.cameras[c].intrinsics_std[1] = s.cameras[c].intrinsics_std[0];
-        s.cameras[c].pose_std.assign(6, 0.0);
-        s.cameras[c].center_std_m.assign(3, 0.0);
-        if (c > 0) {
-          Eigen::Matrix<double, 6, 6, Eigen::RowMajor> cp;
-          covariance.GetCovarianceBlock(cam_params[c].data(), cam_params[c].data(), cp.data());
-          for (int i = 0; i < 6; ++i)
-            s.cameras[c].pose_std[static_cast<std::size_t>(i)] =
-                std::sqrt(std::max(0.0, cp(i, i) * sigma2));
-          // Centre = -R(w)^T t: first-order propagation with a numerical Jacobian.
-          Eigen::Matrix<double, 3, 6> J;
-          const auto centre = [](const std::array<double, 6>& q) {
-            const Pose p = from_params(q.data());
-            return Eigen::Vector3d(-p.R.transpose() * p.t);
-          };
-          const Eigen::Vector3d c0 = centre(cam_params[c]);
-          for (int k = 0; k < 6; ++k) {
-            std::array<double, 6> q = cam_params[c];
-            const double h = 1e-7;
-            q[static_cast<std::size_t>(k)] += h;
-            J.col(k) = (centre(q) - c0) / h;
-          }
-          const Eigen::Matrix3d cc = J * cp * J.transpose() * sigma2;
-          s.cameras[c].center_std_m = {std::sqrt(std::max(0.0, cc(0, 0))),
-                                       std::sqrt(std::max(0.0, cc(1, 1))),
-                                       std::sqrt(std::max(0.0, cc(2, 2)))};
-        }
-      }
-    } else {
-      s.covariance_note = "covariance not computed (rank-deficient Jacobian)";
-    }
-    s.covariance_time_s = seconds_since(t_cov);
+// One camera's standard deviations from its covariance blocks (pose and centre: not for camera 0,
+// which is held constant).
+void camera_std_devs(ceres::Covariance& covariance, std::size_t c, double sigma2,
+                     const CalibrationOptions& options, JointProblem& joint, CameraReport& r) {
+  Eigen::Matrix<double, kIntrinsics, kIntrinsics, Eigen::RowMajor> ci;
+  covariance.GetCovarianceBlock(joint.intr[c].data(), joint.intr[c].data(), ci.data());
+  r.intrinsics_std.resize(kIntrinsics);
+  for (int i = 0; i < kIntrinsics; ++i)
+    r.intrinsics_std[static_cast<std::size_t>(i)] = std::sqrt(std::max(0.0, ci(i, i) * sigma2));
+  if (options.fix_aspect_ratio) r.intrinsics_std[1] = r.intrinsics_std[0];
+  r.pose_std.assign(6, 0.0);
+  r.center_std_m.assign(3, 0.0);
+  if (c == 0) return;
+  Eigen::Matrix<double, 6, 6, Eigen::RowMajor> cp;
+  covariance.GetCovarianceBlock(joint.cam_params[c].data(), joint.cam_params[c].data(), cp.data());
+  for (int i = 0; i < 6; ++i)
+    r.pose_std[static_cast<std::size_t>(i)] = std::sqrt(std::max(0.0, cp(i, i) * sigma2));
+  // Centre = -R(w)^T t: first-order propagation with a numerical Jacobian.
+  Eigen::Matrix<double, 3, 6> J;
+  const auto centre = [](const std::array<double, 6>& q) {
+    const Pose p = from_params(q.data());
+    return Eigen::Vector3d(-p.R.transpose() * p.t);
+  };
+  const Eigen::Vector3d c0 = centre(joint.cam_params[c]);
+  for (int k = 0; k < 6; ++k) {
+    std::array<double, 6> q = joint.cam_params[c];
+    const double h = 1e-7;
+    q[static_cast<std::size_t>(k)] += h;
+    J.col(k) = (centre(q) - c0) / h;
   }
+  const Eigen::Matrix3d cc = J * cp * J.transpose() * sigma2;
+  r.center_std_m = {std::sqrt(std::max(0.0, cc(0, 0))), std::sqrt(std::max(0.0, cc(1, 1))),
+                    std::sqrt(std::max(0.0, cc(2, 2)))};
+}
+
+// 6. Standard deviations from the Ceres covariance, scaled by the residual variance
+// sigma^2 = sum r^2 / (residuals - free parameters) as OpenCV's calibrateCameraExtended does.
+void add_std_devs(const CalibrationOptions& options, JointProblem& joint, CalibrationSummary& s) {
+  const std::size_t nc = joint.intr.size();
+  const auto t_cov = Clock::now();
+  ProgressTask task(options.progress, "parameter covariance", 0);
+  ceres::Covariance::Options co;
+  co.algorithm_type = ceres::SPARSE_QR;  // (DENSE_SVD measured 4x slower at 600 parameters)
+  co.num_threads = std::max(1, options.threads);
+  ceres::Covariance covariance(co);
+  std::vector<std::pair<const double*, const double*>> blocks;
+  for (std::size_t c = 0; c < nc; ++c) {
+    blocks.emplace_back(joint.intr[c].data(), joint.intr[c].data());
+    if (c > 0) blocks.emplace_back(joint.cam_params[c].data(), joint.cam_params[c].data());
+  }
+  bool computed = false;
+  {
+    SerialOpenMpScope serial_openmp;  // SPARSE_QR goes through SuiteSparseQR / CHOLMOD too
+    computed = covariance.Compute(blocks, &joint.problem);
+  }
+  if (computed) {
+    const int free_params =
+        joint.problem.NumParameters() - 6 - static_cast<int>(nc * joint.fixed.size());
+    const int dof = 2 * s.observations - free_params;
+    const double sq = joint.sum_squares(joint.all());
+    const double sigma2 = dof > 0 ? sq / dof : 0.0;
+    for (std::size_t c = 0; c < nc; ++c)
+      camera_std_devs(covariance, c, sigma2, options, joint, s.cameras[c]);
+  } else {
+    s.covariance_note = "covariance not computed (rank-deficient Jacobian)";
+  }
+  s.covariance_time_s = seconds_since(t_cov);
+}
+
+}  // namespace
+
+Result<CalibrationSummary> calibrate_rig(const std::vector<CameraObservations>& cameras,
+                                         const BoardSpec& board,
+                                         const CalibrationOptions& options) {
+  HC_RETURN_IF_ERROR(check_rig_input(cameras, board));
+  const auto t_init = Clock::now();
+  const std::size_t nc = cameras.size();
+  CalibrationSummary s;
+
+  std::vector<OpenCvCalibration> single(nc);
+  std::vector<std::map<int, Pose>> cam_from_board(nc);
+  HC_RETURN_IF_ERROR(calibrate_each_camera(cameras, board, options, single, cam_from_board));
+  const BoardSymmetry symmetry = board_symmetry(board, nc);
+  HC_ASSIGN_OR_RETURN(const CameraTree tree, chain_cameras(cameras, cam_from_board, symmetry));
+  JointProblem joint;
+  const std::vector<std::set<int>> flipped =
+      board_poses_in_rig(tree, symmetry, cam_from_board, joint.view_params);
+
+  init_joint_parameters(single, tree.cam_from_rig, joint);
+  add_corner_residuals(cameras, board, options, cam_from_board, flipped, joint);
+  hold_fixed_parameters(options, joint);
+  s.initial_joint_rms_px = joint.rms(joint.all());
+  s.init_time_s = seconds_since(t_init);
+  HC_RETURN_IF_ERROR(solve_joint(options, joint, s));
+
+  report_cameras(cameras, single, tree, options, joint, s);
+  if (options.compute_std_devs) add_std_devs(options, joint, s);
   return s;
 }
 
