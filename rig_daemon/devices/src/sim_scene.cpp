@@ -195,26 +195,36 @@ struct RayCaster {
     const Eigen::Vector2d n = undistort_pixel(cam, u, v);
     return Rt * Eigen::Vector3d(n.x(), n.y(), 1.0);
   }
+  // dir() through the pixel corners (x0 - 0.5 + i, v), i < count, into out[i] (resized to count).
+  // Exact rays every kStride corners, linear in between: the undistortion map's second
+  // derivative is ~6 k1 r / f^2 per px^2, so over 8 px the interpolation error is below 1e-4 px
+  // for any realistic lens.
+  void corner_dirs(int x0, double v, int count, std::vector<Eigen::Vector3d>& out) const {
+    constexpr int kStride = 8;
+    out.resize(static_cast<std::size_t>(count));
+    Eigen::Vector3d prev = dir(x0 - 0.5, v);
+    out[0] = prev;
+    for (int i0 = 0; i0 < count - 1; i0 += kStride) {
+      const int i1 = std::min(count - 1, i0 + kStride);
+      const Eigen::Vector3d next = dir(x0 - 0.5 + i1, v);
+      for (int i = i0 + 1; i <= i1; ++i)
+        out[static_cast<std::size_t>(i)] =
+            prev + (next - prev) * (static_cast<double>(i - i0) / (i1 - i0));
+      prev = next;
+    }
+  }
   const PinholeCamera& cam;
   Eigen::Matrix3d Rt;
   Eigen::Vector3d origin;
 };
 
-}  // namespace
-
-// ---- probe layer -------------------------------------------------------------------------------
-
-void ProbeLayer::render(const PinholeCamera& cam, const ProbeGeometry& probe, const ProbeLook& look,
-                        int width, int height) {
-  grey_ = look.grey;
-  marker_grey_ = look.marker_grey;
-  rows_.clear();
-  samples_.clear();
-  row_index_.clear();
-  // Row spans: project discs along the probe (the sphere, shaft cross-sections every half shaft
-  // radius, the marker balls) and take the union of their bounding boxes, grown for distortion.
-  std::vector<int> lo(static_cast<std::size_t>(height), width),
-      hi(static_cast<std::size_t>(height), -1);
+// Row spans of the probe's projection (lo[y] > hi[y]: none): project discs along the probe (the
+// sphere, shaft cross-sections every half shaft radius, the marker balls) and take the union of
+// their bounding boxes, grown for distortion.
+void probe_row_spans(const PinholeCamera& cam, const ProbeGeometry& probe, int width, int height,
+                     std::vector<int>& lo, std::vector<int>& hi) {
+  lo.assign(static_cast<std::size_t>(height), width);
+  hi.assign(static_cast<std::size_t>(height), -1);
   const auto add_disc = [&](const Eigen::Vector3d& c, double r) {
     const double z = cam.depth(c);
     if (!(z > r + 1e-3)) return;
@@ -238,6 +248,102 @@ void ProbeLayer::render(const PinholeCamera& cam, const ProbeGeometry& probe, co
   for (int i = 0; i <= n; ++i)
     add_disc(c + probe.axis * std::min(probe.shaft_length_m, i * step), probe.shaft_radius_m);
   for (const Eigen::Vector3d& m : probe.markers_m) add_disc(m, probe.marker_radius_m);
+}
+
+// A pixel corner's ray, the probe part it hits and the hit's camera depth.
+struct Corner {
+  Eigen::Vector3d d;
+  int part = 0;
+  double depth = kInf;
+};
+struct CornerLine {             // corners at (x0 - 0.5 + i, y - 0.5)
+  int y = -1, x0 = 0, x1 = -1;  // pixel range whose corners it holds: x0 .. x1 + 1
+  std::vector<Corner> c;
+};
+
+// Rays cast at the probe, per corner line and per pixel (ProbeLayer::render).
+class ProbeCaster {
+ public:
+  ProbeCaster(const PinholeCamera& cam, const ProbeGeometry& probe)
+      : probe_(probe), rc_(cam), zc_(cam.R_cam_world.row(2).transpose()) {}
+
+  // Camera depth of the hit along d_raw (+inf: none) and the part hit.
+  double cast(const Eigen::Vector3d& d_raw, int& part) const {
+    const Eigen::Vector3d d = d_raw.normalized();
+    const double s = probe_.ray_hit(rc_.origin, d, 0.0, &part);
+    return std::isfinite(s) ? s * d.dot(zc_) : kInf;
+  }
+
+  void make_line(int y, int x0, int x1, CornerLine& line) {
+    line.y = y;
+    line.x0 = x0;
+    line.x1 = x1;
+    const int count = x1 - x0 + 2;
+    line.c.resize(static_cast<std::size_t>(count));
+    rc_.corner_dirs(x0, y - 0.5, count, dirs_);
+    for (std::size_t i = 0; i < line.c.size(); ++i) line.c[i].d = dirs_[i];
+    for (Corner& corner : line.c) corner.depth = cast(corner.d, corner.part);
+  }
+
+  // The pixel with corners q (top left, top right, bottom left, bottom right): uniform when they
+  // and its centre agree on the part hit, else supersampled.
+  ProbeLayer::Sample sample(const Corner* const (&q)[4]) const {
+    ProbeLayer::Sample out;
+    int centre_part = 0;
+    const Eigen::Vector3d dc = 0.25 * (q[0]->d + q[1]->d + q[2]->d + q[3]->d);
+    const double centre_depth = cast(dc, centre_part);
+    const bool uniform = q[0]->part == centre_part && q[1]->part == centre_part &&
+                         q[2]->part == centre_part && q[3]->part == centre_part;
+    if (uniform) {
+      if (centre_part == ProbeGeometry::kNone) return out;
+      (centre_part == ProbeGeometry::kBody ? out.body : out.marker) = 1.0f;
+      out.depth = static_cast<float>(centre_depth);
+      return out;
+    }
+    bool marker_edge = centre_part == ProbeGeometry::kMarker;
+    for (const Corner* k : q) marker_edge = marker_edge || k->part == ProbeGeometry::kMarker;
+    const int sub = marker_edge ? kSub : kSub / 2;
+    int body = 0, marker = 0;
+    double depth = kInf;
+    for (int sy = 0; sy < sub; ++sy) {
+      const double fy = (sy + 0.5) / sub;
+      const Eigen::Vector3d left = q[0]->d + fy * (q[2]->d - q[0]->d);
+      const Eigen::Vector3d right = q[1]->d + fy * (q[3]->d - q[1]->d);
+      for (int sx = 0; sx < sub; ++sx) {
+        const double fx = (sx + 0.5) / sub;
+        int part = 0;
+        const double z = cast(left + fx * (right - left), part);
+        if (part == ProbeGeometry::kBody) ++body;
+        if (part == ProbeGeometry::kMarker) ++marker;
+        depth = std::min(depth, z);
+      }
+    }
+    out.body = static_cast<float>(body) / static_cast<float>(sub * sub);
+    out.marker = static_cast<float>(marker) / static_cast<float>(sub * sub);
+    out.depth = static_cast<float>(depth);
+    return out;
+  }
+
+ private:
+  const ProbeGeometry& probe_;
+  const RayCaster rc_;
+  const Eigen::Vector3d zc_;  // camera z axis in the world
+  std::vector<Eigen::Vector3d> dirs_;
+};
+
+}  // namespace
+
+// ---- probe layer -------------------------------------------------------------------------------
+
+void ProbeLayer::render(const PinholeCamera& cam, const ProbeGeometry& probe, const ProbeLook& look,
+                        int width, int height) {
+  grey_ = look.grey;
+  marker_grey_ = look.marker_grey;
+  rows_.clear();
+  samples_.clear();
+  row_index_.clear();
+  std::vector<int> lo, hi;
+  probe_row_spans(cam, probe, width, height, lo, hi);
 
   first_row_ = -1;
   for (int y = 0; y < height; ++y) {
@@ -261,45 +367,7 @@ void ProbeLayer::render(const PinholeCamera& cam, const ProbeGeometry& probe, co
   // marker is involved, whose centroid matters; 4 x 4 for the body's edges) with rays
   // interpolated bilinearly between the corner rays (distortion is linear across a pixel to far
   // below 1e-3 px).
-  const RayCaster rc(cam);
-  const Eigen::Vector3d zc = cam.R_cam_world.row(2).transpose();  // camera z axis in the world
-  struct Corner {
-    Eigen::Vector3d d;
-    int part = 0;
-    double depth = kInf;
-  };
-  struct Line {                   // corners at (x0 - 0.5 + i, y - 0.5)
-    int y = -1, x0 = 0, x1 = -1;  // pixel range whose corners it holds: x0 .. x1 + 1
-    std::vector<Corner> c;
-  };
-  const auto cast = [&](const Eigen::Vector3d& d_raw, int& part) {
-    const Eigen::Vector3d d = d_raw.normalized();
-    const double s = probe.ray_hit(rc.origin, d, 0.0, &part);
-    return std::isfinite(s) ? s * d.dot(zc) : kInf;
-  };
-  // Exact rays every kStride corners, linear in between: the undistortion map's second
-  // derivative is ~6 k1 r / f^2 per px^2, so over 8 px the interpolation error is below 1e-4 px
-  // for any realistic lens.
-  constexpr int kStride = 8;
-  const auto make_line = [&](int y, int x0, int x1, Line& line) {
-    line.y = y;
-    line.x0 = x0;
-    line.x1 = x1;
-    const int count = x1 - x0 + 2;
-    line.c.resize(static_cast<std::size_t>(count));
-    const double v = y - 0.5;
-    Eigen::Vector3d prev = rc.dir(x0 - 0.5, v);
-    line.c[0].d = prev;
-    for (int i0 = 0; i0 < count - 1; i0 += kStride) {
-      const int i1 = std::min(count - 1, i0 + kStride);
-      const Eigen::Vector3d next = rc.dir(x0 - 0.5 + i1, v);
-      for (int i = i0 + 1; i <= i1; ++i)
-        line.c[static_cast<std::size_t>(i)].d =
-            prev + (next - prev) * (static_cast<double>(i - i0) / (i1 - i0));
-      prev = next;
-    }
-    for (Corner& corner : line.c) corner.depth = cast(corner.d, corner.part);
-  };
+  ProbeCaster caster(cam, probe);
   const auto span_of = [&](int y, int& x0, int& x1) {
     if (y < first_row_ || y > rows_.back().y) return false;
     const int ri = row_index_[static_cast<std::size_t>(y - first_row_)];
@@ -308,7 +376,7 @@ void ProbeLayer::render(const PinholeCamera& cam, const ProbeGeometry& probe, co
     x1 = rows_[static_cast<std::size_t>(ri)].x1;
     return true;
   };
-  Line top, bottom;
+  CornerLine top, bottom;
   for (const Row& r : rows_) {
     // The line above this row: the previous row's bottom line if it covers this span.
     if (bottom.y == r.y && bottom.x0 <= r.x0 && bottom.x1 >= r.x1) {
@@ -316,48 +384,16 @@ void ProbeLayer::render(const PinholeCamera& cam, const ProbeGeometry& probe, co
     } else {
       int px0 = r.x0, px1 = r.x1;
       if (int a = 0, b = -1; span_of(r.y - 1, a, b)) px0 = std::min(px0, a), px1 = std::max(px1, b);
-      make_line(r.y, px0, px1, top);
+      caster.make_line(r.y, px0, px1, top);
     }
     int nx0 = r.x0, nx1 = r.x1;  // the line below: shared with the next row
     if (int a = 0, b = -1; span_of(r.y + 1, a, b)) nx0 = std::min(nx0, a), nx1 = std::max(nx1, b);
-    make_line(r.y + 1, nx0, nx1, bottom);
+    caster.make_line(r.y + 1, nx0, nx1, bottom);
     for (int x = r.x0; x <= r.x1; ++x) {
       const std::size_t it = static_cast<std::size_t>(x - top.x0);
       const std::size_t ib = static_cast<std::size_t>(x - bottom.x0);
-      const Corner* q[4] = {&top.c[it], &top.c[it + 1], &bottom.c[ib], &bottom.c[ib + 1]};
-      int centre_part = 0;
-      const Eigen::Vector3d dc = 0.25 * (q[0]->d + q[1]->d + q[2]->d + q[3]->d);
-      const double centre_depth = cast(dc, centre_part);
-      Sample& out = samples_[r.offset + static_cast<std::size_t>(x - r.x0)];
-      const bool uniform = q[0]->part == centre_part && q[1]->part == centre_part &&
-                           q[2]->part == centre_part && q[3]->part == centre_part;
-      if (uniform) {
-        if (centre_part == ProbeGeometry::kNone) continue;
-        (centre_part == ProbeGeometry::kBody ? out.body : out.marker) = 1.0f;
-        out.depth = static_cast<float>(centre_depth);
-        continue;
-      }
-      bool marker_edge = centre_part == ProbeGeometry::kMarker;
-      for (const Corner* k : q) marker_edge = marker_edge || k->part == ProbeGeometry::kMarker;
-      const int sub = marker_edge ? kSub : kSub / 2;
-      int body = 0, marker = 0;
-      double depth = kInf;
-      for (int sy = 0; sy < sub; ++sy) {
-        const double fy = (sy + 0.5) / sub;
-        const Eigen::Vector3d left = q[0]->d + fy * (q[2]->d - q[0]->d);
-        const Eigen::Vector3d right = q[1]->d + fy * (q[3]->d - q[1]->d);
-        for (int sx = 0; sx < sub; ++sx) {
-          const double fx = (sx + 0.5) / sub;
-          int part = 0;
-          const double z = cast(left + fx * (right - left), part);
-          if (part == ProbeGeometry::kBody) ++body;
-          if (part == ProbeGeometry::kMarker) ++marker;
-          depth = std::min(depth, z);
-        }
-      }
-      out.body = static_cast<float>(body) / static_cast<float>(sub * sub);
-      out.marker = static_cast<float>(marker) / static_cast<float>(sub * sub);
-      out.depth = static_cast<float>(depth);
+      const Corner* const q[4] = {&top.c[it], &top.c[it + 1], &bottom.c[ib], &bottom.c[ib + 1]};
+      samples_[r.offset + static_cast<std::size_t>(x - r.x0)] = caster.sample(q);
     }
   }
 }
@@ -440,18 +476,27 @@ bool board_visible(const PinholeCamera& cam, const BoardSpec& spec, const BoardP
   return true;
 }
 
-std::size_t render_board(const PinholeCamera& cam, const BoardSpec& spec, const BoardPose& pose,
-                         Frame& frame) {
-  const Eigen::Vector3d centre_w = pose.R * spec.grid_center() + pose.t;
-  const Eigen::Vector3d front = -pose.R.col(2);
-  if (!(front.dot(cam.center_world() - centre_w) > 0.0)) return 0;  // seen from behind
-  const int w = static_cast<int>(frame.width);
-  const int h = static_cast<int>(frame.height);
+namespace {
+
+// The plate (the squares and the margin around them), board frame.
+struct Plate {
+  double x0, x1, y0, y1;
+};
+
+Plate plate_of(const BoardSpec& spec) {
   const double s = spec.square_m;
   const double m = spec.margin_squares * s;
-  const double bx0 = -s - m, bx1 = spec.cols * s + m;  // the plate, board frame
-  const double by0 = -s - m, by1 = spec.rows * s + m;
-  // Bounding box: the plate's outline sampled densely (distortion bends straight edges).
+  return {-s - m, spec.cols * s + m, -s - m, spec.rows * s + m};
+}
+
+struct PixelBox {
+  int x0 = 0, x1 = -1, y0 = 0, y1 = -1;  // inclusive; empty when x0 > x1 or y0 > y1
+};
+
+// Bounding box: the plate's outline sampled densely (distortion bends straight edges); the whole
+// frame when part of the outline is behind the camera.
+PixelBox plate_pixel_box(const PinholeCamera& cam, const BoardPose& pose, const Plate& plate, int w,
+                         int h) {
   double u0 = kInf, u1 = -kInf, v0 = kInf, v1 = -kInf;
   bool behind = false;
   constexpr int kOutline = 32;
@@ -461,16 +506,16 @@ std::size_t render_board(const PinholeCamera& cam, const BoardSpec& spec, const 
       double bx = 0.0, by = 0.0;
       switch (e) {
         case 0:
-          bx = bx0 + f * (bx1 - bx0), by = by0;
+          bx = plate.x0 + f * (plate.x1 - plate.x0), by = plate.y0;
           break;
         case 1:
-          bx = bx1, by = by0 + f * (by1 - by0);
+          bx = plate.x1, by = plate.y0 + f * (plate.y1 - plate.y0);
           break;
         case 2:
-          bx = bx0 + f * (bx1 - bx0), by = by1;
+          bx = plate.x0 + f * (plate.x1 - plate.x0), by = plate.y1;
           break;
         default:
-          bx = bx0, by = by0 + f * (by1 - by0);
+          bx = plate.x0, by = plate.y0 + f * (plate.y1 - plate.y0);
           break;
       }
       const std::optional<Eigen::Vector2d> uv =
@@ -482,114 +527,141 @@ std::size_t render_board(const PinholeCamera& cam, const BoardSpec& spec, const 
       u0 = std::min(u0, uv->x()), u1 = std::max(u1, uv->x());
       v0 = std::min(v0, uv->y()), v1 = std::max(v1, uv->y());
     }
-  int x0 = 0, x1 = w - 1, y0 = 0, y1 = h - 1;
-  if (!behind) {
-    x0 = floor_clamped(u0 - 2.0, 0, w);
-    x1 = ceil_clamped(u1 + 2.0, -1, w - 1);
-    y0 = floor_clamped(v0 - 2.0, 0, h);
-    y1 = ceil_clamped(v1 + 2.0, -1, h - 1);
-  }
-  if (x0 > x1 || y0 > y1) return 0;
+  if (behind) return {0, w - 1, 0, h - 1};
+  return {floor_clamped(u0 - 2.0, 0, w), ceil_clamped(u1 + 2.0, -1, w - 1),
+          floor_clamped(v0 - 2.0, 0, h), ceil_clamped(v1 + 2.0, -1, h - 1)};
+}
+
+// Where rays through the image meet the board and what they see there (render_board).
+class BoardHits {
+ public:
+  BoardHits(const PinholeCamera& cam, const BoardSpec& spec, const BoardPose& pose,
+            const Plate& plate)
+      : rc(cam),
+        spec_(spec),
+        plate_(plate),
+        Rt_(pose.R.transpose()),
+        o_b_(Rt_ * (rc.origin - pose.t)) {}
 
   // Board coordinates of a ray's hit with the plane z_board = 0 (nan when parallel or behind).
-  const RayCaster rc(cam);
-  const Eigen::Matrix3d Rt = pose.R.transpose();
-  const Eigen::Vector3d o_b = Rt * (rc.origin - pose.t);
-  const auto plane = [&](const Eigen::Vector3d& d_w) -> Eigen::Vector2d {
-    const Eigen::Vector3d d = Rt * d_w;
+  Eigen::Vector2d plane(const Eigen::Vector3d& d_w) const {
+    const Eigen::Vector3d d = Rt_ * d_w;
     if (!(d.z() > 1e-12)) return {NAN, NAN};  // o_b.z < 0 (front side): rays must go +z
-    const double t = -o_b.z() / d.z();
+    const double t = -o_b_.z() / d.z();
     if (!(t > 0.0)) return {NAN, NAN};
-    return {o_b.x() + t * d.x(), o_b.y() + t * d.y()};
-  };
+    return {o_b_.x() + t * d.x(), o_b_.y() + t * d.y()};
+  }
+
   // Colour class: -1 off the plate, 0 white (margin or white square), 1 black; `cell` identifies
   // the region so uniform pixels can be told apart from edge pixels.
-  const auto classify = [&](const Eigen::Vector2d& b, long& cell) -> int {
-    if (!(b.x() >= bx0 && b.x() < bx1 && b.y() >= by0 && b.y() < by1)) {
+  int classify(const Eigen::Vector2d& b, long& cell) const {
+    if (!(b.x() >= plate_.x0 && b.x() < plate_.x1 && b.y() >= plate_.y0 && b.y() < plate_.y1)) {
       cell = -1;
       return -1;
     }
+    const double s = spec_.square_m;
     const double a = std::floor(b.x() / s), c = std::floor(b.y() / s);
-    if (a < -1 || c < -1 || a > spec.cols - 1 || c > spec.rows - 1) {
+    if (a < -1 || c < -1 || a > spec_.cols - 1 || c > spec_.rows - 1) {
       cell = -2;  // the white margin
       return 0;
     }
     cell = static_cast<long>((a + 1) * 1000 + (c + 1));
     return (static_cast<long>(a + c) % 2 == 0) ? 1 : 0;
-  };
-  const double black = spec.black, white = spec.white;
-  std::size_t touched = 0;
-  const int cw = x1 - x0 + 2;
-  std::vector<Eigen::Vector2d> top(static_cast<std::size_t>(cw)),
-      bottom(static_cast<std::size_t>(cw));
-  std::vector<long> top_cell(static_cast<std::size_t>(cw)),
-      bottom_cell(static_cast<std::size_t>(cw));
-  // Exact rays every kStride corners, linear in between (as ProbeLayer::render).
-  constexpr int kStride = 8;
-  std::vector<Eigen::Vector3d> dirs(static_cast<std::size_t>(cw));
-  const auto fill_edge = [&](double v, std::vector<Eigen::Vector2d>& pts,
-                             std::vector<long>& cells) {
-    Eigen::Vector3d prev = rc.dir(x0 - 0.5, v);
-    dirs[0] = prev;
-    for (int i0 = 0; i0 < cw - 1; i0 += kStride) {
-      const int i1 = std::min(cw - 1, i0 + kStride);
-      const Eigen::Vector3d next = rc.dir(x0 - 0.5 + i1, v);
-      for (int i = i0 + 1; i <= i1; ++i)
-        dirs[static_cast<std::size_t>(i)] =
-            prev + (next - prev) * (static_cast<double>(i - i0) / (i1 - i0));
-      prev = next;
-    }
-    for (int i = 0; i < cw; ++i) {
-      pts[static_cast<std::size_t>(i)] = plane(dirs[static_cast<std::size_t>(i)]);
+  }
+
+  // Hits and cells of the pixel corners (x0 - 0.5 + i, v), i < pts.size() (rays as
+  // RayCaster::corner_dirs).
+  void corner_row(int x0, double v, std::vector<Eigen::Vector2d>& pts, std::vector<long>& cells) {
+    const int count = static_cast<int>(pts.size());
+    rc.corner_dirs(x0, v, count, dirs_);
+    for (int i = 0; i < count; ++i) {
+      pts[static_cast<std::size_t>(i)] = plane(dirs_[static_cast<std::size_t>(i)]);
       classify(pts[static_cast<std::size_t>(i)], cells[static_cast<std::size_t>(i)]);
     }
-  };
-  fill_edge(y0 - 0.5, top, top_cell);
-  for (int y = y0; y <= y1; ++y) {
-    fill_edge(y + 0.5, bottom, bottom_cell);
+  }
+
+  const RayCaster rc;
+
+ private:
+  const BoardSpec& spec_;
+  const Plate plate_;
+  const Eigen::Matrix3d Rt_;
+  const Eigen::Vector3d o_b_;
+  std::vector<Eigen::Vector3d> dirs_;
+};
+
+// Pixel (x, y) from its corners' hits q and cells (top left, top right, bottom left, bottom
+// right) over its grey `pixel`; false when the board does not cover it.
+bool shade_board_pixel(const BoardHits& hits, const BoardSpec& spec, int x, int y,
+                       const Eigen::Vector2d* const (&q)[4], const long (&cells)[4],
+                       std::uint8_t& pixel) {
+  const double black = spec.black, white = spec.white;
+  const bool finite = std::isfinite(q[0]->x()) && std::isfinite(q[1]->x()) &&
+                      std::isfinite(q[2]->x()) && std::isfinite(q[3]->x());
+  const long c0 = cells[0];
+  if (finite && c0 == cells[1] && c0 == cells[2] && c0 == cells[3]) {
+    if (c0 == -1) return false;  // off the plate
+    long cell = 0;
+    const int cls = hits.classify(0.25 * (*q[0] + *q[1] + *q[2] + *q[3]), cell);
+    if (cls < 0) return false;
+    pixel = to_grey(cls == 1 ? black : white);
+    return true;
+  }
+  // Edge pixel: 8 x 8 samples (board coordinates interpolated bilinearly between the corner
+  // hits, or cast per sample when a corner missed the plane).
+  double sum = 0.0;
+  int on_plate = 0;
+  for (int sy = 0; sy < kSub; ++sy) {
+    const double fy = (sy + 0.5) / kSub;
+    for (int sx = 0; sx < kSub; ++sx) {
+      const double fx = (sx + 0.5) / kSub;
+      Eigen::Vector2d b;
+      if (finite) {
+        const Eigen::Vector2d l = *q[0] + fy * (*q[2] - *q[0]);
+        const Eigen::Vector2d r = *q[1] + fy * (*q[3] - *q[1]);
+        b = l + fx * (r - l);
+      } else {
+        b = hits.plane(hits.rc.dir(x - 0.5 + fx, y - 0.5 + fy));
+      }
+      long cell = 0;
+      const int cls = hits.classify(b, cell);
+      if (cls < 0) continue;
+      ++on_plate;
+      sum += cls == 1 ? black : white;
+    }
+  }
+  if (on_plate == 0) return false;
+  const double n = kSub * kSub;
+  pixel = to_grey(sum / n + (n - on_plate) / n * pixel);
+  return true;
+}
+
+}  // namespace
+
+std::size_t render_board(const PinholeCamera& cam, const BoardSpec& spec, const BoardPose& pose,
+                         Frame& frame) {
+  const Eigen::Vector3d centre_w = pose.R * spec.grid_center() + pose.t;
+  const Eigen::Vector3d front = -pose.R.col(2);
+  if (!(front.dot(cam.center_world() - centre_w) > 0.0)) return 0;  // seen from behind
+  const Plate plate = plate_of(spec);
+  const PixelBox box = plate_pixel_box(cam, pose, plate, static_cast<int>(frame.width),
+                                       static_cast<int>(frame.height));
+  if (box.x0 > box.x1 || box.y0 > box.y1) return 0;
+
+  BoardHits hits(cam, spec, pose, plate);
+  std::size_t touched = 0;
+  const std::size_t cw = static_cast<std::size_t>(box.x1 - box.x0 + 2);
+  std::vector<Eigen::Vector2d> top(cw), bottom(cw);
+  std::vector<long> top_cell(cw), bottom_cell(cw);
+  hits.corner_row(box.x0, box.y0 - 0.5, top, top_cell);
+  for (int y = box.y0; y <= box.y1; ++y) {
+    hits.corner_row(box.x0, y + 0.5, bottom, bottom_cell);
     std::uint8_t* row = frame.pixels.data() + static_cast<std::size_t>(y) * frame.stride_bytes;
-    for (int x = x0; x <= x1; ++x) {
-      const std::size_t i = static_cast<std::size_t>(x - x0);
-      const Eigen::Vector2d* q[4] = {&top[i], &top[i + 1], &bottom[i], &bottom[i + 1]};
-      const long c0 = top_cell[i];
-      const bool finite = std::isfinite(q[0]->x()) && std::isfinite(q[1]->x()) &&
-                          std::isfinite(q[2]->x()) && std::isfinite(q[3]->x());
-      if (finite && c0 == top_cell[i + 1] && c0 == bottom_cell[i] && c0 == bottom_cell[i + 1]) {
-        if (c0 == -1) continue;  // off the plate
-        long cell = 0;
-        const int cls = classify(0.25 * (*q[0] + *q[1] + *q[2] + *q[3]), cell);
-        if (cls < 0) continue;
-        row[x] = to_grey(cls == 1 ? black : white);
-        ++touched;
-        continue;
-      }
-      // Edge pixel: 8 x 8 samples (board coordinates interpolated bilinearly between the corner
-      // hits, or cast per sample when a corner missed the plane).
-      double sum = 0.0;
-      int on_plate = 0;
-      for (int sy = 0; sy < kSub; ++sy) {
-        const double fy = (sy + 0.5) / kSub;
-        for (int sx = 0; sx < kSub; ++sx) {
-          const double fx = (sx + 0.5) / kSub;
-          Eigen::Vector2d b;
-          if (finite) {
-            const Eigen::Vector2d l = *q[0] + fy * (*q[2] - *q[0]);
-            const Eigen::Vector2d r = *q[1] + fy * (*q[3] - *q[1]);
-            b = l + fx * (r - l);
-          } else {
-            b = plane(rc.dir(x - 0.5 + fx, y - 0.5 + fy));
-          }
-          long cell = 0;
-          const int cls = classify(b, cell);
-          if (cls < 0) continue;
-          ++on_plate;
-          sum += cls == 1 ? black : white;
-        }
-      }
-      if (on_plate == 0) continue;
-      const double n = kSub * kSub;
-      row[x] = to_grey(sum / n + (n - on_plate) / n * row[x]);
-      ++touched;
+    for (int x = box.x0; x <= box.x1; ++x) {
+      const std::size_t i = static_cast<std::size_t>(x - box.x0);
+      const Eigen::Vector2d* const q[4] = {&top[i], &top[i + 1], &bottom[i], &bottom[i + 1]};
+      const long cells[4] = {top_cell[i], top_cell[i + 1], bottom_cell[i], bottom_cell[i + 1]};
+      if (shade_board_pixel(hits, spec, x, y, q, cells, row[x])) ++touched;
     }
     std::swap(top, bottom);
     std::swap(top_cell, bottom_cell);

@@ -133,6 +133,192 @@ Result<std::string> encode_png(std::uint32_t width, std::uint32_t height, int ch
   return std::move(out.bytes);
 }
 
+namespace {
+
+// A JSON channel as one CSV file: log_time_ns, publish_time_ns, sequence, then every field.
+Status export_json_csv(const McapReader& reader, const ReadOptions& ro,
+                       const std::filesystem::path& file, ExportReport& rep) {
+  // Pass 1: the columns, in order of first appearance.
+  std::vector<std::string> columns;
+  std::map<std::string, std::size_t> column_of;
+  Status err;
+  std::vector<std::pair<std::string, std::string>> flat;
+  HC_RETURN_IF_ERROR(reader.read_messages(ro, [&](const MessageEvent& e) {
+    auto j = parse_json_message(e.message.data);
+    if (!j.ok()) {
+      err = j.status().with_context(fmt::format("message at log_time {}", e.message.log_time));
+      return false;
+    }
+    flat.clear();
+    flatten(*j, "", flat);
+    for (const auto& [k, v] : flat)
+      if (column_of.emplace(k, columns.size()).second) columns.push_back(k);
+    return true;
+  }));
+  HC_RETURN_IF_ERROR(err);
+  // Pass 2: the rows.
+  std::string csv = "log_time_ns,publish_time_ns,sequence";
+  for (const auto& c : columns) csv += "," + csv_cell(c);
+  csv += "\n";
+  std::vector<std::string> cells(columns.size());
+  HC_RETURN_IF_ERROR(reader.read_messages(ro, [&](const MessageEvent& e) {
+    auto j = parse_json_message(e.message.data);
+    if (!j.ok()) return false;
+    flat.clear();
+    flatten(*j, "", flat);
+    std::fill(cells.begin(), cells.end(), std::string());
+    for (const auto& [k, v] : flat) cells[column_of.at(k)] = v;
+    csv += fmt::format("{},{},{}", e.message.log_time, e.message.publish_time, e.message.sequence);
+    for (const auto& c : cells) csv += "," + csv_cell(c);
+    csv += "\n";
+    ++rep.messages;
+    return true;
+  }));
+  HC_RETURN_IF_ERROR(write_file_atomic(file, csv));
+  rep.files.push_back(file);
+  return {};
+}
+
+// How encode_png stores the pixels of a RawImage encoding; channels 0: not one PNG export handles.
+struct PngLayout {
+  int channels = 0;
+  int bit_depth = 8;
+  bool bgr = false;
+};
+
+PngLayout png_layout(const std::string& enc) {
+  PngLayout l;
+  if (enc == "mono8" || enc == "8UC1")
+    l.channels = 1;
+  else if (enc == "mono16" || enc == "16UC1") {
+    l.channels = 1;
+    l.bit_depth = 16;
+  } else if (enc == "rgb8" || enc == "8UC3")
+    l.channels = 3;
+  else if (enc == "bgr8") {
+    l.channels = 3;
+    l.bgr = true;
+  } else if (enc == "rgba8")
+    l.channels = 4;
+  else if (enc == "bgra8") {
+    l.channels = 4;
+    l.bgr = true;
+  }
+  return l;
+}
+
+// One exported frame: its file's name and bytes, and what its line of the frames index ends with
+// (timestamp_ns, width, height, encoding).
+struct FrameFile {
+  std::string name;
+  std::string bytes;
+  std::string line_tail;
+};
+
+// A foxglove.RawImage as "<base>_<index>.png".
+Result<FrameFile> raw_frame_file(const MessageEvent& e, const std::string& base,
+                                 std::uint64_t index) {
+  auto im = decode_raw_image(e.message.data);
+  if (!im.ok())
+    return im.status().with_context(fmt::format("frame at log_time {}", e.message.log_time));
+  const std::string& enc = im->encoding;
+  const PngLayout layout = png_layout(enc);
+  if (layout.channels == 0)
+    return unsupported(
+        fmt::format("frame at log_time {}: PNG export of encoding '{}' is not "
+                    "supported",
+                    e.message.log_time, enc));
+  HC_ASSIGN_OR_RETURN(std::string png,
+                      encode_png(im->width, im->height, layout.channels, layout.bit_depth,
+                                 layout.bgr, im->step, im->data));
+  FrameFile f;
+  f.bytes = std::move(png);
+  f.name = fmt::format("{}_{:06d}.png", base, index);
+  f.line_tail = fmt::format("{},{},{},{}", im->timestamp_ns, im->width, im->height, enc);
+  return f;
+}
+
+// A foxglove.CompressedImage as "<base>_<index>.<format>", its bytes unchanged.
+Result<FrameFile> compressed_frame_file(const MessageEvent& e, const std::string& base,
+                                        std::uint64_t index) {
+  auto im = decode_compressed_image(e.message.data);
+  if (!im.ok())
+    return im.status().with_context(fmt::format("frame at log_time {}", e.message.log_time));
+  const std::string ext = im->format.empty() ? "bin" : file_safe(im->format);
+  FrameFile f;
+  f.name = fmt::format("{}_{:06d}.{}", base, index, ext);
+  f.bytes.assign(im->data.begin(), im->data.end());
+  f.line_tail = fmt::format("{},,,{}", im->timestamp_ns, csv_cell(im->format));
+  return f;
+}
+
+// Moves the staged files (the index last) into out_dir, listing them in rep.files.
+Status move_into_place(const std::filesystem::path& stage, const std::vector<std::string>& staged,
+                       const std::filesystem::path& out_dir, ExportReport& rep) {
+  std::error_code ec;
+  for (const std::string& name : staged) {
+    std::filesystem::rename(stage / name, out_dir / name, ec);
+    if (ec) {
+      const std::string why = ec.message();
+      // Take back what was moved: the frames and their index are there together or not at all.
+      for (const std::filesystem::path& f : rep.files) std::filesystem::remove(f, ec);
+      return io_error(
+          fmt::format("{}: cannot move {} into place: {}", out_dir.string(), name, why));
+    }
+    rep.files.push_back(out_dir / name);
+  }
+  return {};
+}
+
+// An image channel as one file per frame plus "<base>_frames.csv", their index.
+Status export_frames(const McapReader& reader, const ReadOptions& ro, bool raw,
+                     const std::filesystem::path& out_dir, const std::string& base,
+                     ExportReport& rep) {
+  // The frames go to a staging folder first and are moved into out_dir at the end, the index last:
+  // an export that fails or is killed leaves no folder of frames without its index (the staging
+  // folder of a killed run is removed by the next one).
+  remove_stale_temporaries(out_dir);
+  const std::filesystem::path stage = temp_path_for(out_dir / base);
+  std::error_code ec;
+  std::filesystem::create_directory(stage, ec);
+  if (ec)
+    return io_error(fmt::format("{}: cannot create directory: {}", stage.string(), ec.message()));
+  struct RemoveStage {
+    const std::filesystem::path& dir;
+    ~RemoveStage() {
+      std::error_code e;
+      std::filesystem::remove_all(dir, e);
+    }
+  } remove_stage{stage};
+  std::vector<std::string> staged;
+  std::string index =
+      "file,log_time_ns,publish_time_ns,sequence,timestamp_ns,width,height,encoding\n";
+  Status err;
+  HC_RETURN_IF_ERROR(reader.read_messages(ro, [&](const MessageEvent& e) {
+    Result<FrameFile> frame =
+        raw ? raw_frame_file(e, base, rep.messages) : compressed_frame_file(e, base, rep.messages);
+    if (!frame.ok()) {
+      err = frame.status();
+      return false;
+    }
+    if (Status s = write_file_atomic(stage / frame->name, frame->bytes); !s.ok()) {
+      err = s;
+      return false;
+    }
+    staged.push_back(frame->name);
+    index += fmt::format("{},{},{},{},{}\n", frame->name, e.message.log_time,
+                         e.message.publish_time, e.message.sequence, frame->line_tail);
+    ++rep.messages;
+    return true;
+  }));
+  HC_RETURN_IF_ERROR(err);
+  staged.push_back(base + "_frames.csv");
+  HC_RETURN_IF_ERROR(write_file_atomic(stage / staged.back(), index));
+  return move_into_place(stage, staged, out_dir, rep);
+}
+
+}  // namespace
+
 Result<ExportReport> export_channel(const std::filesystem::path& mcap, std::string_view topic,
                                     const std::filesystem::path& out_dir) {
   HC_ASSIGN_OR_RETURN(McapReader reader, McapReader::open(mcap));
@@ -159,46 +345,7 @@ Result<ExportReport> export_channel(const std::filesystem::path& mcap, std::stri
 
   if (channel->message_encoding == kJsonEncoding) {
     rep.kind = "csv";
-    // Pass 1: the columns, in order of first appearance.
-    std::vector<std::string> columns;
-    std::map<std::string, std::size_t> column_of;
-    Status err;
-    std::vector<std::pair<std::string, std::string>> flat;
-    HC_RETURN_IF_ERROR(reader.read_messages(ro, [&](const MessageEvent& e) {
-      auto j = parse_json_message(e.message.data);
-      if (!j.ok()) {
-        err = j.status().with_context(fmt::format("message at log_time {}", e.message.log_time));
-        return false;
-      }
-      flat.clear();
-      flatten(*j, "", flat);
-      for (const auto& [k, v] : flat)
-        if (column_of.emplace(k, columns.size()).second) columns.push_back(k);
-      return true;
-    }));
-    HC_RETURN_IF_ERROR(err);
-    // Pass 2: the rows.
-    std::string csv = "log_time_ns,publish_time_ns,sequence";
-    for (const auto& c : columns) csv += "," + csv_cell(c);
-    csv += "\n";
-    std::vector<std::string> cells(columns.size());
-    HC_RETURN_IF_ERROR(reader.read_messages(ro, [&](const MessageEvent& e) {
-      auto j = parse_json_message(e.message.data);
-      if (!j.ok()) return false;
-      flat.clear();
-      flatten(*j, "", flat);
-      std::fill(cells.begin(), cells.end(), std::string());
-      for (const auto& [k, v] : flat) cells[column_of.at(k)] = v;
-      csv +=
-          fmt::format("{},{},{}", e.message.log_time, e.message.publish_time, e.message.sequence);
-      for (const auto& c : cells) csv += "," + csv_cell(c);
-      csv += "\n";
-      ++rep.messages;
-      return true;
-    }));
-    const auto file = out_dir / (base + ".csv");
-    HC_RETURN_IF_ERROR(write_file_atomic(file, csv));
-    rep.files.push_back(file);
+    HC_RETURN_IF_ERROR(export_json_csv(reader, ro, out_dir / (base + ".csv"), rep));
     return rep;
   }
 
@@ -212,104 +359,7 @@ Result<ExportReport> export_channel(const std::filesystem::path& mcap, std::stri
         "foxglove.RawImage / foxglove.CompressedImage frames",
         mcap.string(), topic, channel->message_encoding, schema ? schema->name : ""));
   rep.kind = raw ? "png" : "image";
-  // The frames go to a staging folder first and are moved into out_dir at the end, the index last:
-  // an export that fails or is killed leaves no folder of frames without its index (the staging
-  // folder of a killed run is removed by the next one).
-  remove_stale_temporaries(out_dir);
-  const std::filesystem::path stage = temp_path_for(out_dir / base);
-  std::filesystem::create_directory(stage, ec);
-  if (ec)
-    return io_error(fmt::format("{}: cannot create directory: {}", stage.string(), ec.message()));
-  struct RemoveStage {
-    const std::filesystem::path& dir;
-    ~RemoveStage() {
-      std::error_code e;
-      std::filesystem::remove_all(dir, e);
-    }
-  } remove_stage{stage};
-  std::vector<std::string> staged;
-  std::string index =
-      "file,log_time_ns,publish_time_ns,sequence,timestamp_ns,width,height,encoding\n";
-  Status err;
-  HC_RETURN_IF_ERROR(reader.read_messages(ro, [&](const MessageEvent& e) {
-    std::string name;
-    std::string bytes;
-    std::string line_tail;
-    if (raw) {
-      auto im = decode_raw_image(e.message.data);
-      if (!im.ok()) {
-        err = im.status().with_context(fmt::format("frame at log_time {}", e.message.log_time));
-        return false;
-      }
-      const std::string& enc = im->encoding;
-      int ch = 0, depth = 8;
-      bool bgr = false;
-      if (enc == "mono8" || enc == "8UC1")
-        ch = 1;
-      else if (enc == "mono16" || enc == "16UC1") {
-        ch = 1;
-        depth = 16;
-      } else if (enc == "rgb8" || enc == "8UC3")
-        ch = 3;
-      else if (enc == "bgr8") {
-        ch = 3;
-        bgr = true;
-      } else if (enc == "rgba8")
-        ch = 4;
-      else if (enc == "bgra8") {
-        ch = 4;
-        bgr = true;
-      }
-      if (ch == 0) {
-        err =
-            unsupported(fmt::format("frame at log_time {}: PNG export of encoding '{}' is not "
-                                    "supported",
-                                    e.message.log_time, enc));
-        return false;
-      }
-      auto png = encode_png(im->width, im->height, ch, depth, bgr, im->step, im->data);
-      if (!png.ok()) {
-        err = png.status();
-        return false;
-      }
-      bytes = std::move(png).value();
-      name = fmt::format("{}_{:06d}.png", base, rep.messages);
-      line_tail = fmt::format("{},{},{},{}", im->timestamp_ns, im->width, im->height, enc);
-    } else {
-      auto im = decode_compressed_image(e.message.data);
-      if (!im.ok()) {
-        err = im.status().with_context(fmt::format("frame at log_time {}", e.message.log_time));
-        return false;
-      }
-      const std::string ext = im->format.empty() ? "bin" : file_safe(im->format);
-      name = fmt::format("{}_{:06d}.{}", base, rep.messages, ext);
-      bytes.assign(im->data.begin(), im->data.end());
-      line_tail = fmt::format("{},,,{}", im->timestamp_ns, csv_cell(im->format));
-    }
-    if (Status s = write_file_atomic(stage / name, bytes); !s.ok()) {
-      err = s;
-      return false;
-    }
-    staged.push_back(name);
-    index += fmt::format("{},{},{},{},{}\n", name, e.message.log_time, e.message.publish_time,
-                         e.message.sequence, line_tail);
-    ++rep.messages;
-    return true;
-  }));
-  HC_RETURN_IF_ERROR(err);
-  staged.push_back(base + "_frames.csv");
-  HC_RETURN_IF_ERROR(write_file_atomic(stage / staged.back(), index));
-  for (const std::string& name : staged) {
-    std::filesystem::rename(stage / name, out_dir / name, ec);
-    if (ec) {
-      const std::string why = ec.message();
-      // Take back what was moved: the frames and their index are there together or not at all.
-      for (const std::filesystem::path& f : rep.files) std::filesystem::remove(f, ec);
-      return io_error(
-          fmt::format("{}: cannot move {} into place: {}", out_dir.string(), name, why));
-    }
-    rep.files.push_back(out_dir / name);
-  }
+  HC_RETURN_IF_ERROR(export_frames(reader, ro, raw, out_dir, base, rep));
   return rep;
 }
 
