@@ -27,7 +27,7 @@ if(HARDCOPY_FUZZ)
 endif()
 
 # hardcopy_add_library(NAME SOURCES ... PUBLIC ... PRIVATE ...): a library with public headers in
-# ./include, registered in the global HARDCOPY_LIBRARIES list (the benchmarks link it). Sources are globbed so that adding a file needs no CMake edit.
+# ./include, registered in the global HARDCOPY_LIBRARIES list (the `hardcopy` tool links them all). Sources are globbed so that adding a file needs no CMake edit.
 function(hardcopy_add_library name)
   cmake_parse_arguments(ARG "" "" "SOURCES;PUBLIC;PRIVATE" ${ARGN})
   add_library(${name} STATIC ${ARG_SOURCES})
