@@ -28,12 +28,7 @@ TEST(ExampleProblem, JacobianMatchesCentralDifferences) {
   Result<ExampleProblem> problem = ExampleProblem::create(b.mesh, ex);
   ASSERT_TRUE(problem.ok()) << problem.status().to_string();
   std::mt19937 rng(7);
-  std::uniform_real_distribution<double> u(0.7, 1.4);
-  std::vector<fem::LambdaAlpha> p = b.truth;
-  for (auto& x : p) {
-    x.lambda *= u(rng);
-    x.alpha = x.lambda * 0.25 * u(rng);
-  }
+  const std::vector<fem::LambdaAlpha> p = b.perturbed(&rng);
   Eigen::VectorXd r0;
   ASSERT_TRUE(problem->simulate(p, &r0).ok());
   Eigen::MatrixXd j;

@@ -7,6 +7,7 @@
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <random>
 #include <vector>
 
 #include "common/tet_mesh.h"
@@ -112,6 +113,17 @@ struct TwoLayerBlock {
   }
   Example example(double x, double y, const Eigen::Vector3d& force) const {
     return simulate_example(mesh, truth, top_nodes_near(mesh, x, y, 0.011), force);
+  }
+  // The truth with every element's λ scaled by U(0.7, 1.4) and α set to λ · 0.25 · U(0.7, 1.4)
+  // (a point away from the minimum, for Jacobian checks).
+  std::vector<fem::LambdaAlpha> perturbed(std::mt19937* rng) const {
+    std::uniform_real_distribution<double> u(0.7, 1.4);
+    std::vector<fem::LambdaAlpha> p = truth;
+    for (auto& x : p) {
+      x.lambda *= u(*rng);
+      x.alpha = x.lambda * 0.25 * u(*rng);
+    }
+    return p;
   }
 };
 

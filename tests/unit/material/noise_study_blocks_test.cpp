@@ -12,14 +12,15 @@
 #include <cstdio>
 
 #include "hyperelastic_reference.h"
+#include "noise_study.h"
 #include "processing/material/fit.h"
 #include "sanitizer.h"
 
 namespace hc::material {
 namespace {
 
-constexpr double kNoise[] = {0.0, 0.1, 0.2, 0.3};
-constexpr double kThesis[] = {0.003, 0.021, 0.031, 0.044};
+using testing::kNoise;
+using testing::kThesis;
 
 struct Block {
   const char* name;
@@ -48,33 +49,12 @@ std::vector<Block> blocks() {
 }
 
 double fit_error(const Samples& clean, int k, std::uint64_t seed) {
-  const double noise = kNoise[k];
-  const Samples noisy = add_displacement_noise(clean, noise, seed);
-  HeterogeneousFitOptions options;
-  if (noise == 0) {
-    options.parameters.regularization = 1e-8;
-    options.rbf.tolerance = 0.02;
-  } else {
-    options.parameters.regularization = 0.01 * noise * noise;
-    options.parameters.poisson_prior = 0.1;
-    options.rbf.max_basis = 3;
-    options.joint.enabled = true;
-  }
-  // The dense LM (the thesis's path): the matrix-free one stops at a point of the joint fit's flat
-  // valley that moves with rounding (one 30 % stream: 3.26 % alone, 4.95 % after other fits in
-  // the same process changed OpenBLAS's threads), too unsteady for bounds on single draws.
-  options.parameters.solver = FitSolver::kDense;
   HeterogeneousFitSummary fs;
-  Result<Material> m = fit_heterogeneous(noisy, options, &fs);
-  EXPECT_TRUE(m.ok()) << m.status().to_string();
-  if (!m.ok()) return 1.0;
-  Result<EvaluateSummary> ev = evaluate_material(RbfMaterial(*m), clean, {});
-  EXPECT_TRUE(ev.ok()) << ev.status().to_string();
-  if (!ev.ok()) return 1.0;
+  const double error = testing::noise_study_error(clean, kNoise[k], seed, &fs);
   std::printf("  noise %2.0f %%: error %.2f %% (thesis %.1f %%), fit %.1f s (joint %.1f s, %s)\n",
-              100 * noise, 100 * ev->error_rel_max_disp, 100 * kThesis[k],
-              fs.time_s, fs.joint_time_s, fs.joint.matrix_free ? "matrix-free" : "dense");
-  return ev->error_rel_max_disp;
+              100 * kNoise[k], 100 * error, 100 * kThesis[k], fs.time_s, fs.joint_time_s,
+              fs.joint.matrix_free ? "matrix-free" : "dense");
+  return error;
 }
 
 TEST(NoiseStudyBlocks, MeanErrorsNoWorseThanTheThesis) {

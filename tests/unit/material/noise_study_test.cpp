@@ -110,6 +110,7 @@
 #include <iterator>
 
 #include "hyperelastic_reference.h"
+#include "noise_study.h"
 #include "processing/material/fit.h"
 #include "sanitizer.h"
 
@@ -117,8 +118,6 @@
 namespace hc::material {
 namespace {
 
-constexpr double kNoisyRegularization = 0.01;
-constexpr double kPoissonPrior = 0.1;
 constexpr int kExamples = 9;
 
 testing::HyperelasticReference three_layers() {
@@ -143,47 +142,21 @@ SynthOptions synth_options(const testing::HyperelasticReference& ref, int exampl
   return o;
 }
 
-// Thesis Sec. 4.5 ("On average, we obtain an error of 0.3 % ... 2.1 %, 3.1 % and 4.4 %").
-constexpr double kNoise[] = {0.0, 0.1, 0.2, 0.3};
-constexpr double kThesis[] = {0.003, 0.021, 0.031, 0.044};
+using testing::kNoise;
+using testing::kThesis;
 
 // error_rel_max_disp of the material fitted to the examples with noise level kNoise[k] (noise
 // stream `seed`), evaluated on the clean examples.
 double noise_study_error(const Samples& clean, int k, std::uint64_t seed) {
-  const Samples noisy = add_displacement_noise(clean, kNoise[k], seed);
-  HeterogeneousFitOptions options;
-  // Noise-free: weak smoothing, rich basis. Noisy: Tikhonov weight growing with the noise
-  // variance (γ = 0.01 σ², σ as a fraction of the max displacement), a small basis, a weak prior
-  // on Poisson's ratio, which displacement data hardly identify (see fit.h), and the joint
-  // material fit over all examples (its defaults).
-  if (kNoise[k] == 0) {
-    options.parameters.regularization = 1e-8;
-    options.rbf.tolerance = 0.02;
-  } else {
-    options.parameters.regularization = kNoisyRegularization * kNoise[k] * kNoise[k];
-    options.parameters.poisson_prior = kPoissonPrior;
-    options.rbf.max_basis = 3;
-    options.joint.enabled = true;
-  }
-  // The dense LM (the thesis's path): the matrix-free one stops at a point of the joint fit's flat
-  // valley that moves with rounding (one 30 % stream: 3.26 % alone, 4.95 % after other fits in
-  // the same process changed OpenBLAS's threads), too unsteady for bounds on single draws.
-  options.parameters.solver = FitSolver::kDense;
   HeterogeneousFitSummary fs;
-  Result<Material> m = fit_heterogeneous(noisy, options, &fs);
-  EXPECT_TRUE(m.ok()) << m.status().to_string();
-  if (!m.ok()) return 1.0;
-  RbfMaterial model(*m);
-  Result<EvaluateSummary> ev = evaluate_material(model, clean, {});
-  EXPECT_TRUE(ev.ok()) << ev.status().to_string();
-  if (!ev.ok()) return 1.0;
+  const double error = testing::noise_study_error(clean, kNoise[k], seed, &fs);
   std::printf(
       "noise %2.0f %% (seed %llu): error %.2f %% of max displacement (thesis %.1f %%), basis "
       "%.2f, fit rms %.2f %%, fit %.1f s (per example %.1f s, joint %.1f s, %d LM iterations)\n",
-      100 * kNoise[k], static_cast<unsigned long long>(seed), 100 * ev->error_rel_max_disp,
-      100 * kThesis[k], fs.mean_basis_size, 100 * fs.rms_error_m / clean.max_displacement_m(),
-      fs.time_s, fs.parameter_time_s, fs.joint_time_s, fs.joint.iterations);
-  return ev->error_rel_max_disp;
+      100 * kNoise[k], static_cast<unsigned long long>(seed), 100 * error, 100 * kThesis[k],
+      fs.mean_basis_size, 100 * fs.rms_error_m / clean.max_displacement_m(), fs.time_s,
+      fs.parameter_time_s, fs.joint_time_s, fs.joint.iterations);
+  return error;
 }
 
 Samples clean_examples() {
