@@ -370,6 +370,13 @@ void Verifier::on_summary_record(const LinearRecord& r) {
   summary_crc_ = crc_record(summary_crc_, r);
   summary_records_.emplace_back(r.offset, r.opcode, kRecordPrefixSize + r.content.size());
   auto bad = [&](const Status& s) { problem(r.offset, s.message()); };
+  // An index record decoded into its list, or reported where it does not decode.
+  auto collect = [&](auto decoded, auto* list) {
+    if (!decoded.ok())
+      bad(decoded.status());
+    else
+      list->push_back(std::move(decoded).value());
+  };
   switch (static_cast<Opcode>(r.opcode)) {
     case Opcode::kSchema:
       define_schema(sum_schemas_, r.content, r.offset);
@@ -387,38 +394,18 @@ void Verifier::on_summary_record(const LinearRecord& r) {
         stats_ = *s;
       break;
     }
-    case Opcode::kChunkIndex: {
-      auto s = decode_chunk_index(r.content);
-      if (!s.ok())
-        bad(s.status());
-      else
-        chunk_indexes_.push_back(std::move(s).value());
+    case Opcode::kChunkIndex:
+      collect(decode_chunk_index(r.content), &chunk_indexes_);
       break;
-    }
-    case Opcode::kAttachmentIndex: {
-      auto s = decode_attachment_index(r.content);
-      if (!s.ok())
-        bad(s.status());
-      else
-        attachment_indexes_.push_back(std::move(s).value());
+    case Opcode::kAttachmentIndex:
+      collect(decode_attachment_index(r.content), &attachment_indexes_);
       break;
-    }
-    case Opcode::kMetadataIndex: {
-      auto s = decode_metadata_index(r.content);
-      if (!s.ok())
-        bad(s.status());
-      else
-        metadata_indexes_.push_back(std::move(s).value());
+    case Opcode::kMetadataIndex:
+      collect(decode_metadata_index(r.content), &metadata_indexes_);
       break;
-    }
-    case Opcode::kSummaryOffset: {
-      auto s = decode_summary_offset(r.content);
-      if (!s.ok())
-        bad(s.status());
-      else
-        summary_offsets_.push_back(*s);
+    case Opcode::kSummaryOffset:
+      collect(decode_summary_offset(r.content), &summary_offsets_);
       break;
-    }
     case Opcode::kMessage:
     case Opcode::kChunk:
     case Opcode::kMessageIndex:
