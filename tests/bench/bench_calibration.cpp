@@ -26,7 +26,7 @@
 namespace {
 
 using hc::calib::BoardSpec;
-using hc::calib::CameraModel;
+using hc::CameraModel;
 using hc::calib::CameraObservations;
 using Clock = std::chrono::steady_clock;
 

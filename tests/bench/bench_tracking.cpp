@@ -32,7 +32,7 @@ constexpr int kSteps = 200;
 struct Fixture {
   fs::path dir;
   fs::path session;
-  calib::RigCalibration calibration;
+  RigCalibration calibration;
   TetMesh templ;
   double baseline_s = 0;
 };
@@ -54,7 +54,7 @@ Fixture& fixture() {
       std::fprintf(stderr, "recorded %s in %.1f s\n", x.session.c_str(),
                    std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
     }
-    Result<calib::RigCalibration> cal = tracking::testing::true_calibration(rig);
+    Result<RigCalibration> cal = tracking::testing::true_calibration(rig);
     if (cal.ok()) x.calibration = *cal;
     x.templ = tracking::testing::block_template();
     return x;

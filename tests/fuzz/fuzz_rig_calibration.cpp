@@ -9,7 +9,7 @@
 #include <fstream>
 #include <string>
 
-#include "calibration/cameras/camera_model.h"
+#include "camera/camera_model.h"
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
   static const std::filesystem::path dir = [] {
@@ -23,17 +23,17 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
     std::ofstream f(in, std::ios::binary | std::ios::trunc);
     f.write(reinterpret_cast<const char*>(data), static_cast<std::streamsize>(size));
   }
-  hc::Result<hc::calib::RigCalibration> rig = hc::calib::read_rig_calibration(in);
+  hc::Result<hc::RigCalibration> rig = hc::read_rig_calibration(in);
   if (!rig.ok()) {
     if (rig.status().message().empty()) __builtin_trap();
     return 0;
   }
-  for (const hc::calib::CameraModel& c : rig->cameras)
+  for (const hc::CameraModel& c : rig->cameras)
     if (!hc::calib::validate(c).ok()) __builtin_trap();
   const auto out = dir / "out.yml";
   // Names the reader accepts may still not be writable YAML keys; then writing must fail cleanly.
-  if (!hc::calib::write_rig_calibration(out, *rig).ok()) return 0;
-  hc::Result<hc::calib::RigCalibration> again = hc::calib::read_rig_calibration(out);
+  if (!hc::write_rig_calibration(out, *rig).ok()) return 0;
+  hc::Result<hc::RigCalibration> again = hc::read_rig_calibration(out);
   if (!again.ok() || again->cameras.size() != rig->cameras.size()) __builtin_trap();
   for (std::size_t i = 0; i < rig->cameras.size(); ++i)
     if (again->cameras[i].name != rig->cameras[i].name) __builtin_trap();

@@ -21,9 +21,9 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
     std::ofstream f(path, std::ios::binary | std::ios::trunc);
     f.write(reinterpret_cast<const char*>(data), static_cast<std::streamsize>(size));
   }
-  hc::calib::RigCalibration rig;
+  hc::RigCalibration rig;
   for (int i = 0; i < 2; ++i) {
-    hc::calib::CameraModel c;
+    hc::CameraModel c;
     c.name = "cam" + std::to_string(i);
     c.width = 64;
     c.height = 48;

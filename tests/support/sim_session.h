@@ -13,7 +13,7 @@
 #include <system_error>
 #include <vector>
 
-#include "calibration/cameras/camera_model.h"
+#include "camera/camera_model.h"
 #include "common/json.h"
 #include "common/status.h"
 #include "rig_daemon/daemon/daemon.h"
@@ -88,33 +88,19 @@ inline Result<std::filesystem::path> record_simulated_session_cached(
 
 // The simulated cameras' true calibration from a session's "sim_cameras" metadata, in the frame
 // of its first camera (by name), as calibrate_rig reports a rig.
-inline Result<calib::RigCalibration> true_rig_of_session(const std::filesystem::path& session) {
+inline Result<RigCalibration> true_rig_of_session(const std::filesystem::path& session) {
   HC_ASSIGN_OR_RETURN(recording::McapReader reader, recording::McapReader::open(session));
   HC_ASSIGN_OR_RETURN(std::vector<recording::Metadata> md, reader.read_metadata());
   for (const recording::Metadata& m : md) {
     if (m.name != session::kMetadataSimCameras) continue;
     HC_ASSIGN_OR_RETURN(Json j, parse_json(m.metadata.at("json"), "sim_cameras"));
-    calib::RigCalibration rig;
+    RigCalibration rig;
     Eigen::Isometry3d cam0_from_world = Eigen::Isometry3d::Identity();
     for (const auto& [name, c] : j.items()) {  // names in order: cam0, cam1, ...
-      Eigen::Isometry3d cam_from_world = Eigen::Isometry3d::Identity();
-      for (int a = 0; a < 3; ++a) {
-        cam_from_world.translation()[a] = c["t_m"][static_cast<std::size_t>(a)].get<double>();
-        for (int b = 0; b < 3; ++b)
-          cam_from_world.linear()(a, b) =
-              c["R"][static_cast<std::size_t>(a)][static_cast<std::size_t>(b)].get<double>();
-      }
+      HC_ASSIGN_OR_RETURN(CameraModel cm, camera_from_json(c, name, "sim_cameras." + name));
+      const Eigen::Isometry3d cam_from_world = cm.camera_from_reference();
       if (rig.cameras.empty()) cam0_from_world = cam_from_world;
       const Eigen::Isometry3d cam_from_rig = cam_from_world * cam0_from_world.inverse();
-      calib::CameraModel cm;
-      cm.name = name;
-      cm.width = c["width"].get<int>();
-      cm.height = c["height"].get<int>();
-      cm.fx = c["fx"].get<double>();
-      cm.fy = c["fy"].get<double>();
-      cm.cx = c["cx"].get<double>();
-      cm.cy = c["cy"].get<double>();
-      cm.distortion = c["distortion"].get<std::vector<double>>();
       cm.R = cam_from_rig.linear();
       cm.t_m = cam_from_rig.translation();
       rig.cameras.push_back(cm);

@@ -8,7 +8,7 @@
 #include <string>
 
 #include "calibration/arm/hand_eye_session.h"
-#include "calibration/cameras/camera_model.h"
+#include "camera/camera_model.h"
 #include "calibration/force/force_session.h"
 #include "calibration/force/fsr_fit.h"
 #include "calibration/force/fsr_io.h"
@@ -155,7 +155,7 @@ struct HandEyeArgs {
 
 int run_hand_eye(const GlobalOptions& global, const HandEyeArgs& a) {
   Context ctx(global);
-  auto rig = calib::read_rig_calibration(a.calib);
+  auto rig = read_rig_calibration(a.calib);
   if (!rig.ok()) return ctx.fail("calib hand-eye", rig.status());
   calib::HandEyeSessionOptions o;
   o.arm_device = a.arm_device;
@@ -164,9 +164,9 @@ int run_hand_eye(const GlobalOptions& global, const HandEyeArgs& a) {
   auto r = calib::calibrate_hand_eye_from_session(a.input, *rig, o);
   if (auto* p = ctx.progress()) p->end("");
   if (!r.ok()) return ctx.fail("calib hand-eye", r.status());
-  calib::RigCalibration out = *rig;
+  RigCalibration out = *rig;
   out.world_from_rig = r->solution.world_from_rig;
-  if (Status s = calib::write_rig_calibration(a.output, out); !s.ok())
+  if (Status s = write_rig_calibration(a.output, out); !s.ok())
     return ctx.fail("calib hand-eye", s);
   if (a.json) {
     Json j = r->to_json();

@@ -12,7 +12,7 @@
 #include "calibration/cameras/board.h"
 #include "calibration/cameras/board_sources.h"
 #include "calibration/cameras/calibrate.h"
-#include "calibration/cameras/camera_model.h"
+#include "camera/camera_model.h"
 #include "command.h"
 #include "common/json.h"
 
@@ -33,7 +33,7 @@ struct CamerasArgs {
   bool json = false;
 };
 
-Json camera_json(const calib::CameraModel& m, const calib::CameraReport& r) {
+Json camera_json(const CameraModel& m, const calib::CameraReport& r) {
   Json R = Json::array();
   for (int i = 0; i < 3; ++i) R.push_back({m.R(i, 0), m.R(i, 1), m.R(i, 2)});
   Json j{{"rms_px", r.rms_px},
@@ -104,7 +104,7 @@ int run_cameras(const GlobalOptions& global, const CamerasArgs& a) {
   if (!obs.ok()) return ctx.fail(cmd, obs.status());
   Result<calib::CalibrationSummary> s = calib::calibrate_rig(*obs, *board, options);
   if (!s.ok()) return ctx.fail(cmd, s.status());
-  if (Status w = calib::write_rig_calibration(a.output, s->rig); !w.ok()) return ctx.fail(cmd, w);
+  if (Status w = write_rig_calibration(a.output, s->rig); !w.ok()) return ctx.fail(cmd, w);
   const double time_s =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   const bool rig = s->rig.cameras.size() > 1;
@@ -150,7 +150,7 @@ int run_cameras(const GlobalOptions& global, const CamerasArgs& a) {
     fmt::print("wrote {}: {} camera(s), {} board pose(s), {} corner observations\n", a.output,
                s->rig.cameras.size(), s->board_poses, s->observations);
     for (std::size_t i = 0; i < s->rig.cameras.size(); ++i) {
-      const calib::CameraModel& m = s->rig.cameras[i];
+      const CameraModel& m = s->rig.cameras[i];
       fmt::print("  {}: rms {:.4f} px, fx {:.3f} fy {:.3f} cx {:.3f} cy {:.3f}, |t| {:.2f} mm\n",
                  m.name, s->cameras[i].rms_px, m.fx, m.fy, m.cx, m.cy, 1e3 * m.t_m.norm());
     }

@@ -9,7 +9,7 @@
 #include <string>
 #include <vector>
 
-#include "calibration/cameras/camera_model.h"
+#include "camera/camera_model.h"
 #include "command.h"
 #include "common/json.h"
 #include "common/tet_mesh_io.h"
@@ -71,7 +71,7 @@ int run_track(const GlobalOptions& global, const TrackArgs& args) {
   Context ctx(global);
   constexpr std::string_view kName = "track";
   const auto t0 = std::chrono::steady_clock::now();
-  Result<calib::RigCalibration> cal = calib::read_rig_calibration(args.calib);
+  Result<RigCalibration> cal = read_rig_calibration(args.calib);
   if (!cal.ok()) return ctx.fail(kName, invalid_argument(cal.status().to_string()));
   Result<TetMesh> templ = read_tetgen(args.templ);
   if (!templ.ok())

@@ -41,25 +41,9 @@ Result<std::optional<Eigen::Isometry3d>> true_world_from_rig(const rec::McapRead
       if (!j.ok() || !j->is_object()) continue;
       const auto cam = j->find(calibration.cameras.front().name);
       if (cam == j->end() || !cam->is_object()) continue;
-      try {  // nlohmann throws on wrong types: no truth then, not an error
-        Eigen::Matrix3d r;
-        Eigen::Vector3d t;
-        for (int a = 0; a < 3; ++a) {
-          t[a] = (*cam)["t_m"].at(static_cast<std::size_t>(a)).get<double>();
-          for (int b = 0; b < 3; ++b)
-            r(a, b) = (*cam)["R"]
-                          .at(static_cast<std::size_t>(a))
-                          .at(static_cast<std::size_t>(b))
-                          .get<double>();
-        }
-        if (r.allFinite() && t.allFinite()) {
-          Eigen::Isometry3d cam_from_world = Eigen::Isometry3d::Identity();
-          cam_from_world.linear() = r;
-          cam_from_world.translation() = t;
-          truth_x = cam_from_world.inverse();
-        }
-      } catch (const Json::exception&) {
-      }
+      // A malformed record means no truth, not an error.
+      Result<CameraModel> truth = camera_from_json(*cam, cam.key(), "sim_cameras");
+      if (truth.ok()) truth_x = truth->camera_from_reference().inverse();
     }
   }
   return truth_x;

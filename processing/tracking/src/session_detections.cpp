@@ -102,7 +102,7 @@ namespace {
 // Cameras: every foxglove.RawImage channel named /<camera>/image, each in the calibration and
 // each calibrated camera in the session; at least two. Into out->cameras, in calibration order.
 Status match_session_cameras(const recording::McapReader& reader,
-                             const calib::RigCalibration& calibration, const std::string& name,
+                             const RigCalibration& calibration, const std::string& name,
                              SessionDetections* out) {
   std::set<std::string> session_cameras;
   for (const auto& [id, ch] : reader.channels()) {
@@ -117,7 +117,7 @@ Status match_session_cameras(const recording::McapReader& reader,
   if (session_cameras.empty())
     return invalid_argument(
         fmt::format("{}: the session has no camera channel (/<camera>/image)", name));
-  for (const calib::CameraModel& c : calibration.cameras) {
+  for (const CameraModel& c : calibration.cameras) {
     if (!session_cameras.count(c.name))
       return invalid_argument(
           fmt::format("{}: calibration camera '{}' has no channel in the session (cameras: {})",
@@ -154,7 +154,7 @@ Status read_session_metadata(const recording::McapReader& reader, const std::str
     if (it == m.metadata.end()) continue;
     const Json j = Json::parse(it->second, nullptr, false);
     if (j.is_discarded() || !j.is_object()) continue;
-    for (const calib::CameraModel& c : out->cameras) {
+    for (const CameraModel& c : out->cameras) {
       if (!j.contains(c.name) || !j[c.name].is_object()) continue;
       int w = 0, h = 0;
       if (get_int(j[c.name], "width", w) && get_int(j[c.name], "height", h) &&
@@ -258,7 +258,7 @@ Status read_truth_points(const Json& t, const char* key, const std::string& name
 
 // A step's ground truth: markers, probe tip and axis, shaft markers, occluded markers per camera.
 Status read_step_truth(const Json& t, const std::string& name,
-                       const std::vector<calib::CameraModel>& cameras, SessionStep* st) {
+                       const std::vector<CameraModel>& cameras, SessionStep* st) {
   if (!t.contains("markers_m") || !t["markers_m"].is_array()) return {};
   HC_RETURN_IF_ERROR(read_truth_points(t, "markers_m", name, &st->truth_markers_m));
   Eigen::Vector3d v;
@@ -282,7 +282,7 @@ Status read_step_truth(const Json& t, const std::string& name,
 // The steps to track (one per sync record when the session has no step records), each with its
 // trigger edge, force and ground truth, and empty per-camera detections.
 Result<std::vector<SessionStep>> session_steps(JsonRecords rec, const std::string& name,
-                                               const std::vector<calib::CameraModel>& cameras,
+                                               const std::vector<CameraModel>& cameras,
                                                std::size_t max_steps) {
   std::vector<SessionStep> steps = std::move(rec.steps);
   if (steps.empty()) {
@@ -317,7 +317,7 @@ Result<std::vector<SessionStep>> session_steps(JsonRecords rec, const std::strin
 class BatchDetector {
  public:
   BatchDetector(const SessionReadOptions& options, const std::string& name,
-                const std::vector<calib::CameraModel>& cameras, std::vector<SessionStep>* steps)
+                const std::vector<CameraModel>& cameras, std::vector<SessionStep>* steps)
       : options_(options),
         name_(name),
         cameras_(cameras),
@@ -394,7 +394,7 @@ class BatchDetector {
   static constexpr std::size_t kBatch = 6;
   const SessionReadOptions& options_;
   const std::string& name_;
-  const std::vector<calib::CameraModel>& cameras_;
+  const std::vector<CameraModel>& cameras_;
   std::vector<SessionStep>& steps_;
   markers::BlobOptions blobs_;
   std::optional<markers::ColorDotOptions> color_;
@@ -412,7 +412,7 @@ Status detect_step_frames(const recording::McapReader& reader,
                           const std::map<std::uint64_t, Sync>& sync,
                           const SessionReadOptions& options, const std::string& name,
                           std::vector<SessionStep>* steps, SessionDetections* out) {
-  const std::vector<calib::CameraModel>& cameras = out->cameras;
+  const std::vector<CameraModel>& cameras = out->cameras;
   std::vector<std::int64_t> edge_times;
   std::vector<std::uint64_t> edge_index;
   for (const auto& [index, s] : sync) {
@@ -482,7 +482,7 @@ Status detect_step_frames(const recording::McapReader& reader,
 }  // namespace
 
 Result<SessionDetections> read_session_detections(const std::filesystem::path& session,
-                                                  const calib::RigCalibration& calibration,
+                                                  const RigCalibration& calibration,
                                                   const SessionReadOptions& options) {
   const auto t_start = Clock::now();
   HC_RETURN_IF_ERROR(options.blobs.validate());

@@ -30,7 +30,7 @@ double median_neighbour_distance(const std::vector<Eigen::Vector3d>& p) {
 }  // namespace
 
 std::optional<ProbePose> probe_pose_from_shaft_markers(
-    const std::vector<calib::CameraModel>& cameras, const FrameDetections& shaft_detections,
+    const std::vector<CameraModel>& cameras, const FrameDetections& shaft_detections,
     const Eigen::Isometry3d& world_from_rig, const std::array<double, 2>& distances_m,
     const std::vector<Eigen::Vector3d>& specimen_world, const ProbePoseOptions& options) {
   if (shaft_detections.size() != cameras.size()) return std::nullopt;
@@ -179,7 +179,7 @@ std::vector<int> assign_marker_nodes(const std::vector<StepResult>& results,
 // What the steps share: the registration, the template's nodes and the kept markers.
 struct TrackContext {
   const SessionDetections& in;
-  const calib::RigCalibration& calibration;
+  const RigCalibration& calibration;
   const TetMesh& mesh;
   const SessionTrackOptions& options;
   const std::vector<StepResult>& results;
@@ -410,7 +410,7 @@ void accumulate_truth(const TrackContext& c, std::size_t k, const material::Exam
   for (std::size_t i = 0; i < st.truth_markers_m.size(); ++i) {
     int seen = 0;
     for (std::size_t cam = 0; cam < c.in.cameras.size(); ++cam) {
-      const calib::CameraModel& model = c.in.cameras[cam];
+      const CameraModel& model = c.in.cameras[cam];
       const auto p = model.project(rig_from_world * st.truth_markers_m[i]);
       if (!p || p->x() < 3 || p->y() < 3 || p->x() > model.width - 4 || p->y() > model.height - 4)
         continue;
@@ -501,7 +501,7 @@ void finish_summary(const TrackContext& c, const TruthStats& ts, std::size_t mea
 }  // namespace
 
 Result<TrackedSession> track_detections(const SessionDetections& in,
-                                        const calib::RigCalibration& calibration,
+                                        const RigCalibration& calibration,
                                         const TetMesh& mesh, const SessionTrackOptions& requested) {
   HC_RETURN_IF_ERROR(requested.track.validate());
   // The probe radius: the caller's, else the session's, else the simulator's default.

@@ -73,7 +73,7 @@ Eigen::Matrix3d skew(const Eigen::Vector3d& v) {
 
 // Triangulates from the views a marker's detection vector names, dropping the worst view while
 // the RMS is above max_rms and more than min_views remain. Returns false when it cannot.
-bool triangulate_marker(const std::vector<calib::CameraModel>& cams, const FrameDetections& det,
+bool triangulate_marker(const std::vector<CameraModel>& cams, const FrameDetections& det,
                         std::vector<int>& detection, int min_views, double max_rms,
                         Eigen::Vector3d& point, double& rms) {
   while (true) {
@@ -139,7 +139,7 @@ Status TrackOptions::validate() const {
   return {};
 }
 
-Result<std::vector<MatchedPoint>> match_views(const std::vector<calib::CameraModel>& cameras,
+Result<std::vector<MatchedPoint>> match_views(const std::vector<CameraModel>& cameras,
                                               const FrameDetections& detections,
                                               const MatchOptions& options) {
   HC_RETURN_IF_ERROR(options.validate());
@@ -238,7 +238,7 @@ Result<std::vector<MatchedPoint>> match_views(const std::vector<calib::CameraMod
   return out;
 }
 
-MarkerTracker::MarkerTracker(std::vector<calib::CameraModel> cameras, TrackOptions options)
+MarkerTracker::MarkerTracker(std::vector<CameraModel> cameras, TrackOptions options)
     : cameras_(std::move(cameras)), options_(options) {}
 
 Result<StepResult> MarkerTracker::initialise(const FrameDetections& detections) {
@@ -283,7 +283,7 @@ namespace {
 // One association attempt of the markers' predicted positions with a step's detections: each
 // detection goes to the nearest unambiguous projected marker, then each marker seen in enough
 // views is triangulated. Retired markers take part in nothing.
-StepResult associate(const std::vector<calib::CameraModel>& cameras, const TrackOptions& options,
+StepResult associate(const std::vector<CameraModel>& cameras, const TrackOptions& options,
                      const FrameDetections& detections, const std::vector<PixelGrid>& grids,
                      const std::vector<std::uint8_t>& retired,
                      const std::vector<Eigen::Vector3d>& predicted) {

@@ -26,7 +26,7 @@ Status check_views(const std::vector<View>& views) {
 // (CameraModel::distort_normalized) is not templated for autodiff, and a 2x2 difference quotient at
 // step 1e-7 of normalised coordinates (~1e-4 px) is accurate to ~1e-8 relative, far below what the
 // Gauss-Newton step needs.
-Eigen::Matrix2d distortion_jacobian(const calib::CameraModel& cam, const Eigen::Vector2d& xn) {
+Eigen::Matrix2d distortion_jacobian(const CameraModel& cam, const Eigen::Vector2d& xn) {
   constexpr double kH = 1e-7;
   Eigen::Matrix2d J;
   for (int k = 0; k < 2; ++k) {
@@ -59,7 +59,7 @@ Result<Eigen::Vector3d> triangulate_linear(const std::vector<View>& views) {
   const auto n = static_cast<Eigen::Index>(views.size());
   Eigen::MatrixXd A(2 * n, 4);
   for (Eigen::Index i = 0; i < n; ++i) {
-    const calib::CameraModel& cam = *views[static_cast<std::size_t>(i)].camera;
+    const CameraModel& cam = *views[static_cast<std::size_t>(i)].camera;
     const Eigen::Vector2d xn =
         cam.undistort_to_normalized(views[static_cast<std::size_t>(i)].pixel_px);
     Eigen::Matrix<double, 3, 4> P;
@@ -128,7 +128,7 @@ Result<Triangulation> triangulate(const std::vector<View>& views,
     for (int it = 0; it < options.max_iterations; ++it) {
       out.iterations = it + 1;
       for (std::size_t i = 0; i < n; ++i) {
-        const calib::CameraModel& cam = *views[i].camera;
+        const CameraModel& cam = *views[i].camera;
         const Eigen::Vector3d xc = cam.R * X + cam.t_m;
         const double iz = 1.0 / xc.z();
         const Eigen::Vector2d xn(xc.x() * iz, xc.y() * iz);

@@ -215,17 +215,7 @@ Status Session::Impl::write_opening_metadata() {
     Json sim_cams = Json::object();
     for (const dev::sim::CameraRecord& r : rig.world()->cameras()) {
       if (!session_cameras.count(r.name)) continue;
-      const dev::sim::PinholeCamera& c = r.camera;
-      sim_cams[r.name] = {{"width", c.width},
-                          {"height", c.height},
-                          {"fx", c.fx},
-                          {"fy", c.fy},
-                          {"cx", c.cx},
-                          {"cy", c.cy},
-                          {"distortion", c.distortion},
-                          {"R", mat_json(c.R_cam_world)},
-                          {"t_m", vec_json(c.t_cam_world)},
-                          {"center_m", vec_json(c.center_world())}};
+      sim_cams[r.name] = camera_to_json(r.camera);
     }
     HC_RETURN_IF_ERROR(
         recorder->write_metadata_now(session::kMetadataSimCameras, {{"json", sim_cams.dump()}}));

@@ -16,7 +16,7 @@
 #include <sys/syscall.h>
 #include <unistd.h>
 
-#include "rig_daemon/devices/pinhole.h"
+#include "rig_daemon/devices/sim_dots.h"
 #include "rig_daemon/devices/sim_scene.h"
 
 #include "sim_devices_internal.h"
@@ -28,7 +28,7 @@ namespace {
 // What a simulated camera needs to render a frame, fixed while it streams (copied, so the render
 // thread shares nothing with the device or the world).
 struct RenderSetup {
-  sim::PinholeCamera cam;
+  CameraModel cam;
   sim::DotStyle style;
   sim::ProbeLook probe;
   double marker_radius_m = 0.0;
@@ -263,7 +263,7 @@ class SimCamera final : public Camera {
     info.exposure_s = exposure_s_;
     return info;
   }
-  const sim::PinholeCamera& pinhole() const { return cam_; }
+  const CameraModel& pinhole() const { return cam_; }
 
   // Exposure start of frame k_ (nullopt: not triggered yet).
   std::optional<std::int64_t> exposure_start() const {
@@ -336,12 +336,12 @@ class SimCamera final : public Camera {
 
  protected:
   Status on_configure(ConfigNode node) override {
-    sim::PinholeCamera cam;
+    CameraModel cam = sim::default_camera();
     // A default view: 0.35 m above and in front of the specimen, looking at its centre.
     const auto& spec = parts_.world().options().specimen;
-    sim::look_at(Eigen::Vector3d(spec.center_m.x(), spec.center_m.y() - 0.2, spec.top_z_m + 0.3),
+    look_at(Eigen::Vector3d(spec.center_m.x(), spec.center_m.y() - 0.2, spec.top_z_m + 0.3),
                  Eigen::Vector3d(spec.center_m.x(), spec.center_m.y(), spec.top_z_m), cam);
-    HC_RETURN_IF_ERROR(sim::read_pinhole(node, cam));
+    HC_RETURN_IF_ERROR(read_camera(node, cam));
     cam_ = cam;
     parts_.world().register_camera(name(), cam_);
     node.optional("trigger", mode_,
@@ -477,7 +477,7 @@ class SimCamera final : public Camera {
   }
 
   SimParts parts_;
-  sim::PinholeCamera cam_;
+  CameraModel cam_;
   TriggerMode mode_ = TriggerMode::kHardware;
   double rate_hz_ = 15.0;
   double exposure_s_ = 0.002;

@@ -160,39 +160,15 @@ double ProbeGeometry::ray_hit(const Eigen::Vector3d& o, const Eigen::Vector3d& d
   return best;
 }
 
-// ---- undistortion ------------------------------------------------------------------------------
-
-Eigen::Vector2d undistort_pixel(const PinholeCamera& cam, double u, double v) {
-  const double xd = (u - cam.cx) / cam.fx;
-  const double yd = (v - cam.cy) / cam.fy;
-  const auto& [k1, k2, p1, p2, k3] = cam.distortion;
-  double x = xd, y = yd;
-  // Fixed point x = (xd - tangential(x, y)) / radial(x, y): the map contracts for the small
-  // distortions of real lenses (OpenCV's undistortPoints iterates the same way).
-  for (int it = 0; it < 30; ++it) {
-    const double r2 = x * x + y * y;
-    const double radial = 1.0 + r2 * (k1 + r2 * (k2 + r2 * k3));
-    const double dx = 2.0 * p1 * x * y + p2 * (r2 + 2.0 * x * x);
-    const double dy = p1 * (r2 + 2.0 * y * y) + 2.0 * p2 * x * y;
-    const double nx = (xd - dx) / radial;
-    const double ny = (yd - dy) / radial;
-    const double change = std::abs(nx - x) + std::abs(ny - y);
-    x = nx;
-    y = ny;
-    if (change < 1e-12) break;
-  }
-  return {x, y};
-}
-
 namespace {
 
 // Rays through pixel positions, in the world frame (origin: the camera centre).
 struct RayCaster {
-  explicit RayCaster(const PinholeCamera& c)
-      : cam(c), Rt(c.R_cam_world.transpose()), origin(c.center_world()) {}
+  explicit RayCaster(const CameraModel& c)
+      : cam(c), Rt(c.R.transpose()), origin(c.center_m()) {}
   // Un-normalised world direction of the ray through (u, v).
   Eigen::Vector3d dir(double u, double v) const {
-    const Eigen::Vector2d n = undistort_pixel(cam, u, v);
+    const Eigen::Vector2d n = cam.undistort_to_normalized(Eigen::Vector2d(u, v));
     return Rt * Eigen::Vector3d(n.x(), n.y(), 1.0);
   }
   // dir() through the pixel corners (x0 - 0.5 + i, v), i < count, into out[i] (resized to count).
@@ -213,7 +189,7 @@ struct RayCaster {
       prev = next;
     }
   }
-  const PinholeCamera& cam;
+  const CameraModel& cam;
   Eigen::Matrix3d Rt;
   Eigen::Vector3d origin;
 };
@@ -221,12 +197,12 @@ struct RayCaster {
 // Row spans of the probe's projection (lo[y] > hi[y]: none): project discs along the probe (the
 // sphere, shaft cross-sections every half shaft radius, the marker balls) and take the union of
 // their bounding boxes, grown for distortion.
-void probe_row_spans(const PinholeCamera& cam, const ProbeGeometry& probe, int width, int height,
+void probe_row_spans(const CameraModel& cam, const ProbeGeometry& probe, int width, int height,
                      std::vector<int>& lo, std::vector<int>& hi) {
   lo.assign(static_cast<std::size_t>(height), width);
   hi.assign(static_cast<std::size_t>(height), -1);
   const auto add_disc = [&](const Eigen::Vector3d& c, double r) {
-    const double z = cam.depth(c);
+    const double z = cam.depth_m(c);
     if (!(z > r + 1e-3)) return;
     const std::optional<Eigen::Vector2d> uv = cam.project(c);
     if (!uv) return;
@@ -264,8 +240,8 @@ struct CornerLine {             // corners at (x0 - 0.5 + i, y - 0.5)
 // Rays cast at the probe, per corner line and per pixel (ProbeLayer::render).
 class ProbeCaster {
  public:
-  ProbeCaster(const PinholeCamera& cam, const ProbeGeometry& probe)
-      : probe_(probe), rc_(cam), zc_(cam.R_cam_world.row(2).transpose()) {}
+  ProbeCaster(const CameraModel& cam, const ProbeGeometry& probe)
+      : probe_(probe), rc_(cam), zc_(cam.R.row(2).transpose()) {}
 
   // Camera depth of the hit along d_raw (+inf: none) and the part hit.
   double cast(const Eigen::Vector3d& d_raw, int& part) const {
@@ -335,7 +311,7 @@ class ProbeCaster {
 
 // ---- probe layer -------------------------------------------------------------------------------
 
-void ProbeLayer::render(const PinholeCamera& cam, const ProbeGeometry& probe, const ProbeLook& look,
+void ProbeLayer::render(const CameraModel& cam, const ProbeGeometry& probe, const ProbeLook& look,
                         int width, int height) {
   grey_ = look.grey;
   marker_grey_ = look.marker_grey;
@@ -457,10 +433,10 @@ std::vector<BoardPose> board_poses(const BoardSpec& spec, const BoardMotion& mot
   return out;
 }
 
-bool board_visible(const PinholeCamera& cam, const BoardSpec& spec, const BoardPose& pose,
+bool board_visible(const CameraModel& cam, const BoardSpec& spec, const BoardPose& pose,
                    double margin_px, double max_angle_deg) {
   // The face is seen from -z_board: the camera centre must be on that side.
-  const Eigen::Vector3d to_cam = cam.center_world() - (pose.R * spec.grid_center() + pose.t);
+  const Eigen::Vector3d to_cam = cam.center_m() - (pose.R * spec.grid_center() + pose.t);
   const Eigen::Vector3d front = -pose.R.col(2);
   const double cosang = front.dot(to_cam.normalized());
   if (!(cosang > std::cos(max_angle_deg * std::numbers::pi / 180.0))) return false;
@@ -495,7 +471,7 @@ struct PixelBox {
 
 // Bounding box: the plate's outline sampled densely (distortion bends straight edges); the whole
 // frame when part of the outline is behind the camera.
-PixelBox plate_pixel_box(const PinholeCamera& cam, const BoardPose& pose, const Plate& plate, int w,
+PixelBox plate_pixel_box(const CameraModel& cam, const BoardPose& pose, const Plate& plate, int w,
                          int h) {
   double u0 = kInf, u1 = -kInf, v0 = kInf, v1 = -kInf;
   bool behind = false;
@@ -535,7 +511,7 @@ PixelBox plate_pixel_box(const PinholeCamera& cam, const BoardPose& pose, const 
 // Where rays through the image meet the board and what they see there (render_board).
 class BoardHits {
  public:
-  BoardHits(const PinholeCamera& cam, const BoardSpec& spec, const BoardPose& pose,
+  BoardHits(const CameraModel& cam, const BoardSpec& spec, const BoardPose& pose,
             const Plate& plate)
       : rc(cam),
         spec_(spec),
@@ -638,11 +614,11 @@ bool shade_board_pixel(const BoardHits& hits, const BoardSpec& spec, int x, int 
 
 }  // namespace
 
-std::size_t render_board(const PinholeCamera& cam, const BoardSpec& spec, const BoardPose& pose,
+std::size_t render_board(const CameraModel& cam, const BoardSpec& spec, const BoardPose& pose,
                          Frame& frame) {
   const Eigen::Vector3d centre_w = pose.R * spec.grid_center() + pose.t;
   const Eigen::Vector3d front = -pose.R.col(2);
-  if (!(front.dot(cam.center_world() - centre_w) > 0.0)) return 0;  // seen from behind
+  if (!(front.dot(cam.center_m() - centre_w) > 0.0)) return 0;  // seen from behind
   const Plate plate = plate_of(spec);
   const PixelBox box = plate_pixel_box(cam, pose, plate, static_cast<int>(frame.width),
                                        static_cast<int>(frame.height));

@@ -287,13 +287,13 @@ GroundTruth World::ground_truth(std::int64_t t_ns, std::optional<std::uint64_t> 
   for (const CameraRecord& rec : cams) {
     CameraTruth ct;
     ct.camera = rec.name;
-    const PinholeCamera& cam = rec.camera;
-    const Eigen::Vector3d origin = cam.center_world();
+    const CameraModel& cam = rec.camera;
+    const Eigen::Vector3d origin = cam.center_m();
     for (std::size_t i = 0; i < g.markers_m.size(); ++i) {
       const Eigen::Vector3d& m = g.markers_m[i];
       const auto index = static_cast<std::uint32_t>(i);
       const std::optional<Eigen::Vector2d> uv = cam.project(m);
-      const double z = cam.depth(m);
+      const double z = cam.depth_m(m);
       const double r_px = uv ? cam.fx * marker_r / z + 1.0 : 0.0;
       if (!uv || uv->x() - r_px < -0.5 || uv->y() - r_px < -0.5 ||
           uv->x() + r_px > cam.width - 0.5 || uv->y() + r_px > cam.height - 0.5)
@@ -313,7 +313,7 @@ GroundTruth World::ground_truth(std::int64_t t_ns, std::optional<std::uint64_t> 
 
 // ---- Scene ----
 
-void World::register_camera(const std::string& name, const PinholeCamera& camera) {
+void World::register_camera(const std::string& name, const CameraModel& camera) {
   std::lock_guard lock(mutex_);
   for (CameraRecord& c : cameras_)
     if (c.name == name) {

@@ -9,7 +9,7 @@
 #include <fstream>
 
 #include "calibration/cameras/board.h"
-#include "calibration/cameras/camera_model.h"
+#include "camera/camera_model.h"
 #include "calibration/cameras/synthetic.h"
 #include "cli_run.h"
 #include "rig_daemon/recording/foxglove_image.h"

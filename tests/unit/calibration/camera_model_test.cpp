@@ -1,5 +1,5 @@
-// The camera model and the rig calibration file (calibration/cameras/camera_model.h).
-#include "calibration/cameras/camera_model.h"
+// The camera model and the rig calibration file (camera/camera_model.h).
+#include "camera/camera_model.h"
 
 #include <gtest/gtest.h>
 

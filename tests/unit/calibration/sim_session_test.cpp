@@ -10,7 +10,7 @@
 
 #include <nlohmann/json.hpp>
 
-#include "calibration/cameras/camera_model.h"
+#include "camera/camera_model.h"
 #include "calibration/cameras/synthetic.h"
 #include "cli_run.h"
 #include "rig_daemon/daemon/plan.h"

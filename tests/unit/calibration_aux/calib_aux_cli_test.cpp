@@ -4,7 +4,7 @@
 
 #include <filesystem>
 
-#include "calibration/cameras/camera_model.h"
+#include "camera/camera_model.h"
 #include "calibration/force/fsr_io.h"
 #include "cli_run.h"
 #include "common/file_io.h"

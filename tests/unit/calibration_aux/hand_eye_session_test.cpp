@@ -5,7 +5,7 @@
 #include <gtest/gtest.h>
 
 #include "calibration/arm/hand_eye_session.h"
-#include "calibration/cameras/camera_model.h"
+#include "camera/camera_model.h"
 #include "cli_run.h"
 #include "common/file_io.h"
 #include "common/json.h"

@@ -286,7 +286,7 @@ TEST(RigConfig, HighResolutionExampleRigSeesTheWholeSpecimen) {
   ASSERT_EQ(g.markers_m.size(), 441u);
   ASSERT_EQ(g.cameras.size(), 7u);
   for (std::size_t i = 0; i < 7; ++i) {
-    const devices::sim::PinholeCamera& c = cams[i].camera;
+    const CameraModel& c = cams[i].camera;
     EXPECT_EQ(c.width, 1600u);
     EXPECT_EQ(c.height, 1200u);
     EXPECT_TRUE(g.cameras[i].out_of_view.empty()) << cams[i].name;
@@ -298,7 +298,7 @@ TEST(RigConfig, HighResolutionExampleRigSeesTheWholeSpecimen) {
     }
     EXPECT_GT(std::max(u1 - u0, v1 - v0), 600.0) << cams[i].name;
     // Dot radius f r / D with r = 0.6 mm, D ~ 0.3 m: ~7 px.
-    EXPECT_GT(c.fx * 0.0006 / c.depth(g.markers_m[220]), 6.0);
+    EXPECT_GT(c.fx * 0.0006 / c.depth_m(g.markers_m[220]), 6.0);
   }
   // The example calibration plan suits this rig too: every board pose is seen whole by at least
   // two cameras (so the joint adjustment links them), some only by a subset.

@@ -7,13 +7,13 @@
 #include <numbers>
 
 #include "rig_daemon/devices/device.h"
-#include "rig_daemon/devices/pinhole.h"
+#include "rig_daemon/devices/sim_dots.h"
 
 namespace hc::devices::sim {
 namespace {
 
-PinholeCamera simple_camera() {
-  PinholeCamera cam;
+CameraModel simple_camera() {
+  CameraModel cam;
   cam.width = 1600;
   cam.height = 1200;
   cam.fx = 1000.0;
@@ -24,7 +24,7 @@ PinholeCamera simple_camera() {
 }
 
 TEST(Pinhole, KnownPointLandsOnTheExpectedPixel) {
-  PinholeCamera cam = simple_camera();
+  CameraModel cam = simple_camera();
   // Identity pose: u = fx X/Z + cx = 1000 * 0.1 + 800 = 900; v = 1000 * -0.05 + 600 = 550.
   auto uv = cam.project({0.1, -0.05, 1.0});
   ASSERT_TRUE(uv);
@@ -46,42 +46,42 @@ TEST(Pinhole, KnownPointLandsOnTheExpectedPixel) {
 }
 
 TEST(Pinhole, PoseMovesThePoint) {
-  PinholeCamera cam = simple_camera();
+  CameraModel cam = simple_camera();
   // Camera 0.5 m behind the origin along its own z: t = (0, 0, 0.5) -> point (0.1, 0, 0.5) sees
   // depth 1.0 and lands at u = 900.
-  cam.t_cam_world = {0.0, 0.0, 0.5};
+  cam.t_m = {0.0, 0.0, 0.5};
   auto uv = cam.project({0.1, 0.0, 0.5});
   ASSERT_TRUE(uv);
   EXPECT_NEAR(uv->x(), 900.0, 1e-9);
-  EXPECT_NEAR(cam.center_world().z(), -0.5, 1e-12);
+  EXPECT_NEAR(cam.center_m().z(), -0.5, 1e-12);
 }
 
 TEST(Pinhole, LookAtPutsTheTargetOnThePrincipalPointWithZUp) {
-  PinholeCamera cam = simple_camera();
+  CameraModel cam = simple_camera();
   look_at({0.3, -0.2, 0.4}, {0.0, 0.0, 0.05}, cam);
-  EXPECT_NEAR((cam.R_cam_world * cam.R_cam_world.transpose() - Eigen::Matrix3d::Identity()).norm(),
+  EXPECT_NEAR((cam.R * cam.R.transpose() - Eigen::Matrix3d::Identity()).norm(),
               0.0, 1e-12);
-  EXPECT_NEAR(cam.R_cam_world.determinant(), 1.0, 1e-12);
+  EXPECT_NEAR(cam.R.determinant(), 1.0, 1e-12);
   auto uv = cam.project({0.0, 0.0, 0.05});
   ASSERT_TRUE(uv);
   EXPECT_NEAR(uv->x(), 800.0, 1e-9);
   EXPECT_NEAR(uv->y(), 600.0, 1e-9);
   // A point above the target appears higher in the image (smaller v).
   EXPECT_LT(cam.project({0.0, 0.0, 0.08})->y(), 600.0);
-  EXPECT_NEAR((cam.center_world() - Eigen::Vector3d(0.3, -0.2, 0.4)).norm(), 0.0, 1e-12);
+  EXPECT_NEAR((cam.center_m() - Eigen::Vector3d(0.3, -0.2, 0.4)).norm(), 0.0, 1e-12);
 }
 
-Frame blank(const PinholeCamera& cam, std::uint8_t level) {
+Frame blank(const CameraModel& cam, std::uint8_t level) {
   Frame f;
   f.width = cam.width;
   f.height = cam.height;
   f.stride_bytes = cam.width;
-  f.pixels.assign(std::size_t{cam.width} * cam.height, level);
+  f.pixels.assign(static_cast<std::size_t>(cam.width) * cam.height, level);
   return f;
 }
 
 TEST(Pinhole, RenderedDotsHaveSubPixelCentroids) {
-  PinholeCamera cam = simple_camera();
+  CameraModel cam = simple_camera();
   cam.width = 200;
   cam.height = 160;
   cam.cx = 100.0;
@@ -116,10 +116,10 @@ TEST(Pinhole, ReadsCalibrationFromConfig) {
       " R: [[1, 0, 0], [0, 1, 0], [0, 0, 1]], t: [0, 0, 1]}",
       "cam.yaml");
   ASSERT_TRUE(config.ok());
-  PinholeCamera cam;
-  Status s = read_config(*config, [&](ConfigNode node) { return read_pinhole(node, cam); });
+  CameraModel cam;
+  Status s = read_config(*config, [&](ConfigNode node) { return read_camera(node, cam); });
   ASSERT_TRUE(s.ok()) << s.to_string();
-  EXPECT_EQ(cam.width, 640u);
+  EXPECT_EQ(cam.width, 640);
   EXPECT_NEAR(cam.cx, 319.5, 1e-12);  // default: the image centre
   EXPECT_NEAR(cam.fy, 510.0, 1e-12);
   EXPECT_NEAR(cam.project({0, 0, 0})->x(), 319.5, 1e-12);
@@ -127,12 +127,12 @@ TEST(Pinhole, ReadsCalibrationFromConfig) {
   Result<Config> bad =
       parse_config("{R: [[1, 0, 0], [0, 2, 0], [0, 0, 1]], t: [0, 0, 1]}", "b.yaml");
   ASSERT_TRUE(bad.ok());
-  s = read_config(*bad, [&](ConfigNode node) { return read_pinhole(node, cam); });
+  s = read_config(*bad, [&](ConfigNode node) { return read_camera(node, cam); });
   EXPECT_EQ(s.code(), StatusCode::kInvalidArgument);
   EXPECT_NE(s.message().find("rotation"), std::string::npos) << s.message();
 
   Result<Config> half = parse_config("{position_m: [0, 0, 1]}", "h.yaml");
-  s = read_config(*half, [&](ConfigNode node) { return read_pinhole(node, cam); });
+  s = read_config(*half, [&](ConfigNode node) { return read_camera(node, cam); });
   EXPECT_EQ(s.code(), StatusCode::kInvalidArgument);
 }
 

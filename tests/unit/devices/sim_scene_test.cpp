@@ -24,7 +24,7 @@ sim::ProbeGeometry probe_at(double x, double y, double z) {
   return sim::ProbeGeometry::at(ArmPose{x, y, z, 0.0}, 0.005, sim::ProbeLook{});
 }
 
-Frame blank(const sim::PinholeCamera& cam, std::uint8_t grey) {
+Frame blank(const CameraModel& cam, std::uint8_t grey) {
   Frame f;
   f.format = PixelFormat::kMono8;
   f.width = cam.width;
@@ -58,36 +58,36 @@ TEST(SimScene, ProbeRayHitsMatchTheGeometry) {
 }
 
 TEST(SimScene, UndistortInvertsTheDistortionModel) {
-  sim::PinholeCamera cam;
+  CameraModel cam = sim::default_camera();
   cam.distortion = {-0.12, 0.05, 0.001, -0.0005, 0.01};
   for (double x = -0.35; x <= 0.35; x += 0.07)
     for (double y = -0.25; y <= 0.25; y += 0.05) {
       const std::optional<Eigen::Vector2d> uv = cam.project({x, y, 1.0});
       ASSERT_TRUE(uv);
-      const Eigen::Vector2d n = sim::undistort_pixel(cam, uv->x(), uv->y());
+      const Eigen::Vector2d n = cam.undistort_to_normalized(*uv);
       EXPECT_NEAR(n.x(), x, 1e-10);
       EXPECT_NEAR(n.y(), y, 1e-10);
     }
 }
 
 // A 1600 x 1200 camera 0.3 m from the probe, looking at the shaft from the side and above.
-sim::PinholeCamera hires_camera() {
-  sim::PinholeCamera cam;
+CameraModel hires_camera() {
+  CameraModel cam = sim::default_camera();
   cam.fx = cam.fy = 3500.0;
   cam.distortion = {-0.05, 0.08, 0.0003, -0.0002, 0.0};
-  sim::look_at({0.25, -0.12, 0.22}, {0.0, 0.0, 0.12}, cam);
+  look_at({0.25, -0.12, 0.22}, {0.0, 0.0, 0.12}, cam);
   return cam;
 }
 
 TEST(SimScene, ShaftMarkersRenderCentredOnTheirProjection) {
-  const sim::PinholeCamera cam = hires_camera();
+  const CameraModel cam = hires_camera();
   const sim::ProbeGeometry g = probe_at(0.0, 0.0, 0.05);
   sim::ProbeLayer layer;
   layer.render(cam, g, sim::ProbeLook{}, 1600, 1200);
   ASSERT_FALSE(layer.empty());
   for (const Eigen::Vector3d& m : g.markers_m) {
     const Eigen::Vector2d c = *cam.project(m);
-    const double depth = cam.depth(m);
+    const double depth = cam.depth_m(m);
     const double r = cam.fx * 0.0025 / depth;
     double sum = 0.0, su = 0.0, sv = 0.0;
     for (int y = static_cast<int>(c.y() - r - 3); y <= static_cast<int>(c.y() + r + 3); ++y)
@@ -154,14 +154,14 @@ TEST(SimScene, ProbeHidesExactlyTheMarkersTheTruthCallsOccluded) {
   EXPECT_TRUE(g.cameras[0].out_of_view.empty());
   EXPECT_TRUE(g.probe_shown);
   EXPECT_NEAR(g.probe_geometry.tip_m.z(), 0.047, 1e-12);
-  const sim::PinholeCamera cam = with.world->cameras().at(0).camera;
+  const CameraModel cam = with.world->cameras().at(0).camera;
   const Frame& a = frames[0][0];
   const Frame& b = frames[1][0];
   std::size_t compared = 0, behind_body = 0;
   for (std::size_t i = 0; i < g.markers_m.size(); ++i) {
     const Eigen::Vector2d c = *cam.project(g.markers_m[i]);
     // The pixels the dot touches: within its radius plus half a pixel diagonal.
-    const double r = cam.fx * 0.0006 / cam.depth(g.markers_m[i]) + 0.7072;
+    const double r = cam.fx * 0.0006 / cam.depth_m(g.markers_m[i]) + 0.7072;
     if (!occluded.count(static_cast<std::uint32_t>(i))) {
       for (int y = static_cast<int>(c.y() - r); y <= static_cast<int>(c.y() + r) + 1; ++y)
         for (int x = static_cast<int>(c.x() - r); x <= static_cast<int>(c.x() + r) + 1; ++x) {
@@ -175,12 +175,12 @@ TEST(SimScene, ProbeHidesExactlyTheMarkersTheTruthCallsOccluded) {
     }
     // Occluded: where the ray to the centre meets the (not grown) probe body, the centre pixel
     // is the probe's grey (90) unless the dot is in front of the probe.
-    const Eigen::Vector3d o = cam.center_world();
+    const Eigen::Vector3d o = cam.center_m();
     const Eigen::Vector3d d = (g.markers_m[i] - o).normalized();
     int part = 0;
     // The probe shrunk by 1.5 px: the whole centre pixel is inside its silhouette.
     const double s =
-        g.probe_geometry.ray_hit(o, d, -1.5 * cam.depth(g.markers_m[i]) / cam.fx, &part);
+        g.probe_geometry.ray_hit(o, d, -1.5 * cam.depth_m(g.markers_m[i]) / cam.fx, &part);
     if (part == sim::ProbeGeometry::kBody && s < (g.markers_m[i] - o).norm() - 0.001) {
       const auto x = static_cast<std::size_t>(std::lround(c.x()));
       const auto y = static_cast<std::size_t>(std::lround(c.y()));
@@ -195,14 +195,14 @@ TEST(SimScene, ProbeHidesExactlyTheMarkersTheTruthCallsOccluded) {
 TEST(SimScene, BoardCornersMatchOpenCvDetection) {
   // OpenCV 4.6 findChessboardCorners + cornerSubPix on the rendered board must find the true
   // projected inner corners: the supersampled edges put them within a few hundredths of a pixel.
-  sim::PinholeCamera cam;
+  CameraModel cam;
   cam.width = 1024;
   cam.height = 768;
   cam.fx = cam.fy = 2400.0;
   cam.cx = 515.0;
   cam.cy = 380.0;
   cam.distortion = {-0.08, 0.1, 0.0005, -0.0003, 0.0};
-  sim::look_at({0.18, -0.1, 0.3}, {0.0, 0.0, 0.06}, cam);
+  look_at({0.18, -0.1, 0.3}, {0.0, 0.0, 0.06}, cam);
   sim::BoardSpec spec;  // 9 x 6 inner corners of 6 mm
   sim::BoardMotion motion;
   motion.poses = 8;
@@ -238,13 +238,13 @@ TEST(SimScene, BoardCornersMatchOpenCvDetection) {
 }
 
 TEST(SimScene, BoardSeenFromBehindIsNotDrawn) {
-  sim::PinholeCamera cam;
+  CameraModel cam;
   cam.width = 320;
   cam.height = 240;
   cam.fx = cam.fy = 400.0;
   cam.cx = 159.5;
   cam.cy = 119.5;
-  sim::look_at({0.0, -0.05, 0.4}, {0.0, 0.0, 0.05}, cam);
+  look_at({0.0, -0.05, 0.4}, {0.0, 0.0, 0.05}, cam);
   sim::BoardSpec spec;
   sim::BoardPose up =
       sim::board_poses(spec, sim::BoardMotion{1, 1, 0.0, 0.0, {0, 0}, {0, 0}}, {0.0, 0.0, 0.05})[0];
@@ -287,7 +287,7 @@ TEST(SimScene, BoardPosesAreSeededTiltedAndSeenBySubsets) {
   EXPECT_NE(sim::board_poses(spec, motion, centre)[0].R, a[0].R);
   // The seven cameras of rig_daemon/examples/rig_sim.yaml (a half circle, 320 x 240, f = 400):
   // every pose is seen by some cameras, some only by a subset, every camera sees several.
-  std::vector<sim::PinholeCamera> cams(7);
+  std::vector<CameraModel> cams(7);
   for (int i = 0; i < 7; ++i) {
     cams[static_cast<std::size_t>(i)].width = 320;
     cams[static_cast<std::size_t>(i)].height = 240;
@@ -295,7 +295,7 @@ TEST(SimScene, BoardPosesAreSeededTiltedAndSeenBySubsets) {
     cams[static_cast<std::size_t>(i)].cx = 159.5;
     cams[static_cast<std::size_t>(i)].cy = 119.5;
     const double phi = -std::numbers::pi * i / 6.0;
-    sim::look_at({0.3 * std::cos(phi), 0.3 * std::sin(phi), 0.3}, {0, 0, 0.05},
+    look_at({0.3 * std::cos(phi), 0.3 * std::sin(phi), 0.3}, {0, 0, 0.05},
                  cams[static_cast<std::size_t>(i)]);
   }
   int subset_poses = 0;

@@ -10,7 +10,7 @@
 #include <random>
 #include <vector>
 
-#include "rig_daemon/devices/pinhole.h"
+#include "rig_daemon/devices/sim_dots.h"
 
 namespace hc::markers {
 namespace {
@@ -104,7 +104,7 @@ TEST(DetectBlobs, SubPixelCentroidsOfAntiAliasedDiscs) {
 // edges) with a dark-on-bright style and the kDark polarity, plus Gaussian noise (sigma 2 grey
 // levels): the bias stays < 0.05 px.
 TEST(DetectBlobs, SimulatorRenderedDarkDotsWithNoise) {
-  devices::sim::PinholeCamera cam;
+  CameraModel cam;
   cam.width = 800;
   cam.height = 600;
   cam.fx = cam.fy = 2400;

@@ -90,9 +90,9 @@ class SimulatedPress : public ::testing::Test {
         *rig_yaml_, testing::press_plan_yaml(30, 15.0), dir_->path());
     EXPECT_TRUE(session.ok()) << session.status().to_string();
     session_ = new std::filesystem::path(session.ok() ? *session : std::filesystem::path());
-    Result<calib::RigCalibration> cal = testing::true_calibration(*rig_yaml_);
+    Result<RigCalibration> cal = testing::true_calibration(*rig_yaml_);
     EXPECT_TRUE(cal.ok()) << cal.status().to_string();
-    calibration_ = new calib::RigCalibration(cal.ok() ? *cal : calib::RigCalibration());
+    calibration_ = new RigCalibration(cal.ok() ? *cal : RigCalibration());
   }
   static void TearDownTestSuite() {
     delete tracked_;
@@ -123,14 +123,14 @@ class SimulatedPress : public ::testing::Test {
   static Result<TrackedSession>* tracked_;
   static std::string* rig_yaml_;
   static std::filesystem::path* session_;
-  static calib::RigCalibration* calibration_;
+  static RigCalibration* calibration_;
 };
 ScratchDir* SimulatedPress::dir_ = nullptr;
 SessionDetections* SimulatedPress::detections_ = nullptr;
 Result<TrackedSession>* SimulatedPress::tracked_ = nullptr;
 std::string* SimulatedPress::rig_yaml_ = nullptr;
 std::filesystem::path* SimulatedPress::session_ = nullptr;
-calib::RigCalibration* SimulatedPress::calibration_ = nullptr;
+RigCalibration* SimulatedPress::calibration_ = nullptr;
 
 TEST_F(SimulatedPress, MarkersWithinATenthOfAMillimetreOfTheTruth) {
   HC_SKIP_WHEN_SANITIZED("~3 min per test: a 7-camera session recorded and tracked");
@@ -333,7 +333,7 @@ TEST_F(SimulatedPress, CliTracksColouredDots) {
   ASSERT_TRUE(
       colour_copy(*session_, coloured, static_cast<std::uint64_t>(det.steps[2].edge_host_ns)).ok());
   const std::filesystem::path calib = dir_->path() / "calib_colour.yml";
-  ASSERT_TRUE(calib::write_rig_calibration(calib, *calibration_).ok());
+  ASSERT_TRUE(write_rig_calibration(calib, *calibration_).ok());
   ASSERT_TRUE(write_tetgen(dir_->path() / "block_colour", testing::block_template()).ok());
   const Eigen::Vector3d lab = markers::rgb_to_lab(colourise(220));
   const std::string common = fmt::format("track {{}} --calib {} --template {} --max-steps 2 ",
@@ -455,20 +455,20 @@ TEST(ProbeOfRigConfig, ReadsTheWorldSectionAndTheSimulatorsDefaults) {
 TEST_F(SimulatedPress, MismatchedCalibrationIsAClearError) {
   HC_SKIP_WHEN_SANITIZED("~3 min per test: a 7-camera session recorded and tracked");
   ASSERT_FALSE(session_->empty());
-  calib::RigCalibration renamed = *calibration_;
+  RigCalibration renamed = *calibration_;
   renamed.cameras[2].name = "camX";
   Result<SessionDetections> a = read_session_detections(*session_, renamed);
   ASSERT_FALSE(a.ok());
   EXPECT_EQ(a.status().code(), StatusCode::kInvalidArgument);
   EXPECT_NE(a.status().message().find("camX"), std::string::npos) << a.status().message();
-  calib::RigCalibration resized = *calibration_;
+  RigCalibration resized = *calibration_;
   resized.cameras[0].width = 800;
   Result<SessionDetections> b = read_session_detections(*session_, resized);
   ASSERT_FALSE(b.ok());
   EXPECT_NE(b.status().message().find("800x1200"), std::string::npos) << b.status().message();
   // A calibration with only some of the session's cameras is refused too (the session's other
   // cameras would go unused silently).
-  calib::RigCalibration partial = *calibration_;
+  RigCalibration partial = *calibration_;
   partial.cameras.pop_back();
   EXPECT_FALSE(read_session_detections(*session_, partial).ok());
   EXPECT_FALSE(read_session_detections(dir_->path() / "missing.mcap", *calibration_).ok());
@@ -506,7 +506,7 @@ TEST_F(SimulatedPress, CliWritesSamplesAndPrintsTheJsonContract) {
   HC_SKIP_WHEN_SANITIZED("~3 min per test: a 7-camera session recorded and tracked");
   ASSERT_FALSE(session_->empty());
   const std::filesystem::path calib = dir_->path() / "calib.yml";
-  ASSERT_TRUE(calib::write_rig_calibration(calib, *calibration_).ok());
+  ASSERT_TRUE(write_rig_calibration(calib, *calibration_).ok());
   ASSERT_TRUE(write_tetgen(dir_->path() / "block", testing::block_template()).ok());
   const std::filesystem::path out = dir_->path() / "samples.json";
   const std::string common = fmt::format("track {} --calib {} --template {} ", session_->string(),
@@ -533,10 +533,10 @@ TEST_F(SimulatedPress, CliWritesSamplesAndPrintsTheJsonContract) {
 
   // Bad input: exit 2 with a message, and no output file.
   const std::filesystem::path bad_out = dir_->path() / "bad.json";
-  calib::RigCalibration renamed = *calibration_;
+  RigCalibration renamed = *calibration_;
   renamed.cameras[1].name = "cam9";
   const std::filesystem::path bad_calib = dir_->path() / "renamed.yml";
-  ASSERT_TRUE(calib::write_rig_calibration(bad_calib, renamed).ok());
+  ASSERT_TRUE(write_rig_calibration(bad_calib, renamed).ok());
   r = hc::testing::run_command((hc::testing::bin_dir() / "hardcopy").string() +
                                fmt::format(" track {} --calib {} --template {} -o {} 2>&1",
                                            session_->string(), bad_calib.string(),
@@ -590,9 +590,9 @@ TEST_F(SimulatedPress, CliWritesSamplesAndPrintsTheJsonContract) {
 // round-off; the marker nearer the specimen is marker 0 whatever order the views list them in; a
 // pair that does not fit the shaft's spacing, or markers in one camera only, give no pose.
 TEST(ProbePose, FromTwoProjectedShaftMarkers) {
-  Result<calib::RigCalibration> cal = testing::true_calibration(testing::hires_rig_yaml());
+  Result<RigCalibration> cal = testing::true_calibration(testing::hires_rig_yaml());
   ASSERT_TRUE(cal.ok()) << cal.status().to_string();
-  const std::vector<calib::CameraModel>& cams = cal->cameras;
+  const std::vector<CameraModel>& cams = cal->cameras;
   const Eigen::Vector3d tip(0.002, -0.001, 0.049);
   const Eigen::Vector3d axis = Eigen::Vector3d(0.05, 0.02, 1.0).normalized();
   const std::array<double, 2> d{0.015, 0.035};

@@ -1,6 +1,6 @@
 // Simulated sessions for the tracking tests: a high-resolution 7-camera rig (1600 x 1200, thesis
 // Sec. 5.6) recorded in-process with simulated time, its TRUE calibration (from the rig config
-// through the simulator's own read_pinhole) and a template tet mesh whose top nodes are the
+// through read_camera, as the simulator reads it) and a template tet mesh whose top nodes are the
 // specimen's marker grid.
 #pragma once
 
@@ -10,13 +10,13 @@
 #include <filesystem>
 #include <string>
 
-#include "calibration/cameras/camera_model.h"
+#include "camera/camera_model.h"
 #include "common/config.h"
 #include "common/tet_mesh_io.h"
 #include "processing/fem/verification.h"
 #include "rig_daemon/daemon/plan.h"
 #include "rig_daemon/daemon/rig_config.h"
-#include "rig_daemon/devices/pinhole.h"
+#include "rig_daemon/devices/sim_dots.h"
 #include "sim_session.h"
 
 namespace hc::tracking::testing {
@@ -67,8 +67,8 @@ inline Result<std::filesystem::path> record_session(const std::filesystem::path&
 }
 
 // The true calibration of the rig config's cameras (world frame = rig frame).
-inline Result<calib::RigCalibration> true_calibration(const std::string& rig_yaml) {
-  calib::RigCalibration rig;
+inline Result<RigCalibration> true_calibration(const std::string& rig_yaml) {
+  RigCalibration rig;
   HC_ASSIGN_OR_RETURN(Config cfg, parse_config(rig_yaml, "rig.yaml"));
   Status st = read_config(cfg, [&](ConfigNode root) -> Status {
     root.allow_unknown_keys();
@@ -81,19 +81,9 @@ inline Result<calib::RigCalibration> true_calibration(const std::string& rig_yam
       std::string kind;
       node.optional("kind", kind);
       if (kind != "camera") continue;
-      devices::sim::PinholeCamera p;
-      HC_RETURN_IF_ERROR(devices::sim::read_pinhole(node, p));
-      calib::CameraModel c;
+      CameraModel c = devices::sim::default_camera();
+      HC_RETURN_IF_ERROR(read_camera(node, c));
       c.name = name;
-      c.width = static_cast<int>(p.width);
-      c.height = static_cast<int>(p.height);
-      c.fx = p.fx;
-      c.fy = p.fy;
-      c.cx = p.cx;
-      c.cy = p.cy;
-      c.distortion.assign(p.distortion.begin(), p.distortion.end());
-      c.R = p.R_cam_world;
-      c.t_m = p.t_cam_world;
       rig.cameras.push_back(c);
     }
     return {};

@@ -13,9 +13,9 @@
 namespace hc::tracking {
 namespace {
 
-calib::CameraModel look_at_camera(const std::string& name, const Eigen::Vector3d& centre,
+CameraModel look_at_camera(const std::string& name, const Eigen::Vector3d& centre,
                                   const Eigen::Vector3d& target) {
-  calib::CameraModel c;
+  CameraModel c;
   c.name = name;
   c.width = 1600;
   c.height = 1200;
@@ -33,8 +33,8 @@ calib::CameraModel look_at_camera(const std::string& name, const Eigen::Vector3d
   return c;
 }
 
-std::vector<calib::CameraModel> rig7() {
-  std::vector<calib::CameraModel> cams;
+std::vector<CameraModel> rig7() {
+  std::vector<CameraModel> cams;
   for (int i = 0; i < 7; ++i) {
     const double a = M_PI * i / 6.0;
     cams.push_back(look_at_camera("cam" + std::to_string(i),
@@ -51,7 +51,7 @@ std::vector<Eigen::Vector3d> grid() {
   return g;
 }
 
-FrameDetections project_all(const std::vector<calib::CameraModel>& cams,
+FrameDetections project_all(const std::vector<CameraModel>& cams,
                             const std::vector<Eigen::Vector3d>& pts, double noise_px,
                             std::mt19937& rng) {
   std::normal_distribution<double> n(0.0, noise_px);

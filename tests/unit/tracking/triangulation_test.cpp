@@ -11,9 +11,9 @@ namespace hc::tracking {
 namespace {
 
 // A camera at `centre` looking at `target` (image up ~ world +z), 1600 x 1200, f = 4000 px.
-calib::CameraModel look_at_camera(const std::string& name, const Eigen::Vector3d& centre,
+CameraModel look_at_camera(const std::string& name, const Eigen::Vector3d& centre,
                                   const Eigen::Vector3d& target, std::vector<double> distortion) {
-  calib::CameraModel c;
+  CameraModel c;
   c.name = name;
   c.width = 1600;
   c.height = 1200;
@@ -34,8 +34,8 @@ calib::CameraModel look_at_camera(const std::string& name, const Eigen::Vector3d
   return c;
 }
 
-std::vector<calib::CameraModel> half_circle_rig(int n, std::vector<double> distortion) {
-  std::vector<calib::CameraModel> cams;
+std::vector<CameraModel> half_circle_rig(int n, std::vector<double> distortion) {
+  std::vector<CameraModel> cams;
   for (int i = 0; i < n; ++i) {
     const double a = M_PI * (i + 0.5) / n;
     cams.push_back(look_at_camera("cam" + std::to_string(i),

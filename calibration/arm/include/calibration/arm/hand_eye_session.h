@@ -30,7 +30,7 @@
 #include <vector>
 
 #include "calibration/arm/hand_eye.h"
-#include "calibration/cameras/camera_model.h"
+#include "camera/camera_model.h"
 #include "common/status.h"
 
 namespace hc::calib {

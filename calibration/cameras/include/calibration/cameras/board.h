@@ -12,7 +12,7 @@
 #include <string_view>
 #include <vector>
 
-#include "calibration/cameras/camera_model.h"
+#include "camera/camera_model.h"
 #include "common/status.h"
 
 namespace hc::calib {

@@ -14,7 +14,7 @@
 #include <vector>
 
 #include "calibration/cameras/board.h"
-#include "calibration/cameras/camera_model.h"
+#include "camera/camera_model.h"
 #include "common/progress.h"
 #include "common/status.h"
 

@@ -10,7 +10,7 @@
 
 #include "calibration/cameras/board.h"
 #include "calibration/cameras/calibrate.h"
-#include "calibration/cameras/camera_model.h"
+#include "camera/camera_model.h"
 
 namespace hc::calib {
 

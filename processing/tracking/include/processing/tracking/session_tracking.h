@@ -45,7 +45,7 @@
 #include <string>
 #include <vector>
 
-#include "calibration/cameras/camera_model.h"
+#include "camera/camera_model.h"
 #include "common/progress.h"
 #include "common/status.h"
 #include "common/tet_mesh.h"
@@ -88,7 +88,7 @@ struct StageTimes {
 };
 
 struct SessionDetections {
-  std::vector<calib::CameraModel> cameras;  // calibration order, only cameras of the session
+  std::vector<CameraModel> cameras;  // calibration order, only cameras of the session
   std::vector<SessionStep> steps;
   bool has_truth = false;
   // The probe's shaft-marker distances from the tip along the shaft (m; nearer the tip first) as
@@ -135,7 +135,7 @@ struct SessionReadOptions {
 // calibration camera missing from the session, image sizes that differ from the calibration, no
 // steps / sync records, frames that are not mono8 / rgb8.
 Result<SessionDetections> read_session_detections(const std::filesystem::path& session,
-                                                  const calib::RigCalibration& calibration,
+                                                  const RigCalibration& calibration,
                                                   const SessionReadOptions& options = {});
 
 // The probe's pose in one step (world frame).
@@ -164,7 +164,7 @@ struct ProbePoseOptions {
 // markers; the tip end of the shaft); axis = (m1 - m0) / |m1 - m0|, tip = m0 - d0 axis. nullopt
 // when fewer than two markers are found or no pair fits the shaft.
 std::optional<ProbePose> probe_pose_from_shaft_markers(
-    const std::vector<calib::CameraModel>& cameras, const FrameDetections& shaft_detections,
+    const std::vector<CameraModel>& cameras, const FrameDetections& shaft_detections,
     const Eigen::Isometry3d& world_from_rig, const std::array<double, 2>& distances_m,
     const std::vector<Eigen::Vector3d>& specimen_world, const ProbePoseOptions& options = {});
 
@@ -235,7 +235,7 @@ struct TrackedSession {
 // Tracks the detections, registers them to the template and builds the samples (one example per
 // step). kFailedPrecondition when the first step has too few markers or the registration fails.
 Result<TrackedSession> track_detections(const SessionDetections& detections,
-                                        const calib::RigCalibration& calibration,
+                                        const RigCalibration& calibration,
                                         const TetMesh& template_mesh,
                                         const SessionTrackOptions& options = {});
 

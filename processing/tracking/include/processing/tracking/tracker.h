@@ -12,7 +12,7 @@
 #include <cstdint>
 #include <vector>
 
-#include "calibration/cameras/camera_model.h"
+#include "camera/camera_model.h"
 #include "common/status.h"
 
 namespace hc::tracking {
@@ -48,7 +48,7 @@ struct MatchedPoint {
 // other cameras see a detection at its projection; candidates are accepted greedily (most views,
 // then lowest RMS) with every detection used at most once, then refined over all their views.
 // kInvalidArgument when the detection list does not match the cameras.
-Result<std::vector<MatchedPoint>> match_views(const std::vector<calib::CameraModel>& cameras,
+Result<std::vector<MatchedPoint>> match_views(const std::vector<CameraModel>& cameras,
                                               const FrameDetections& detections,
                                               const MatchOptions& options = {});
 
@@ -92,7 +92,7 @@ struct StepResult {
 // again while that finds more. Leftover detections become new markers (see TrackOptions).
 class MarkerTracker {
  public:
-  MarkerTracker(std::vector<calib::CameraModel> cameras, TrackOptions options);
+  MarkerTracker(std::vector<CameraModel> cameras, TrackOptions options);
   // Finds the markers in the first step; returns its StepResult (every marker measured).
   Result<StepResult> initialise(const FrameDetections& detections);
   // Associates and triangulates a later step.
@@ -100,14 +100,14 @@ class MarkerTracker {
   std::size_t num_markers() const { return position_.size(); }
   // Step (0-based count of initialise/track calls) in which each marker was found.
   const std::vector<int>& birth_step() const { return birth_; }
-  const std::vector<calib::CameraModel>& cameras() const { return cameras_; }
+  const std::vector<CameraModel>& cameras() const { return cameras_; }
 
  private:
   // Markers from the step's leftover detections, matched among themselves, away from the known
   // ones: appended to the tracker and to *best.
   void add_new_markers(const FrameDetections& detections, StepResult* best);
 
-  std::vector<calib::CameraModel> cameras_;
+  std::vector<CameraModel> cameras_;
   TrackOptions options_;
   std::vector<Eigen::Vector3d> position_;  // last measured (or predicted) position
   std::vector<Eigen::Vector3d> velocity_;  // last step's displacement

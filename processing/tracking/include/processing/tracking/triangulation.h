@@ -1,4 +1,4 @@
-// Multi-view triangulation of one point over calibrated cameras (hc::calib::CameraModel):
+// Multi-view triangulation of one point over calibrated cameras (hc::CameraModel):
 // a linear DLT on undistorted normalised image coordinates (Hartley & Zisserman, "Multiple View
 // Geometry", 2nd ed., Sec. 12.2, each view's rows scaled so every camera counts alike), then a
 // Gauss-Newton / Levenberg-Marquardt refinement minimising the reprojection error in pixels through
@@ -12,14 +12,14 @@
 
 #include <vector>
 
-#include "calibration/cameras/camera_model.h"
+#include "camera/camera_model.h"
 #include "common/status.h"
 
 namespace hc::tracking {
 
 // One image observation of the point: the camera (must outlive the call) and the distorted pixel.
 struct View {
-  const calib::CameraModel* camera = nullptr;
+  const CameraModel* camera = nullptr;
   Eigen::Vector2d pixel_px = Eigen::Vector2d::Zero();
 };
 

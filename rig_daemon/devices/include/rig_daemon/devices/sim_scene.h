@@ -1,6 +1,6 @@
 // What the simulated cameras see besides the specimen's marker dots: the contact probe (tip sphere,
 // shaft and two shaft markers, thesis 4.4: "two markers on the white shaft") and a calibration
-// chessboard. Geometry, ray casting and anti-aliased rendering through a PinholeCamera.
+// chessboard. Geometry, ray casting and anti-aliased rendering through a CameraModel.
 //
 // Probe (world frame, m): the tip sphere of radius `radius_m` (world probe_radius_m) whose lowest
 // point is the arm's tool tip; a cylindrical shaft of radius shaft_radius_m from the sphere's
@@ -35,7 +35,7 @@
 
 #include "common/config.h"
 #include "common/status.h"
-#include "rig_daemon/devices/pinhole.h"
+#include "rig_daemon/devices/sim_dots.h"
 #include "rig_daemon/devices/types.h"
 
 namespace hc::devices::sim {
@@ -119,20 +119,20 @@ std::vector<BoardPose> board_poses(const BoardSpec& spec, const BoardMotion& mot
 // Whether a camera sees the whole board: every inner corner projects into the image with
 // `margin_px` to spare, in front of the camera, and the face is towards the camera at an angle
 // below max_angle_deg from its normal.
-bool board_visible(const PinholeCamera& cam, const BoardSpec& spec, const BoardPose& pose,
+bool board_visible(const CameraModel& cam, const BoardSpec& spec, const BoardPose& pose,
                    double margin_px = 2.0, double max_angle_deg = 75.0);
 
 // Renders the board (only its front face; nothing when seen from behind) into a Mono8 frame with
 // edge pixels supersampled 8 x 8; pixels off the board are left as they are. Returns the number
 // of pixels touched.
-std::size_t render_board(const PinholeCamera& cam, const BoardSpec& spec, const BoardPose& pose,
+std::size_t render_board(const CameraModel& cam, const BoardSpec& spec, const BoardPose& pose,
                          Frame& frame);
 
 // The probe as one camera sees it: per-pixel coverage of body and markers and the depth of the
 // nearest hit, over row spans that bound the probe's projection (only those pixels are cast).
 class ProbeLayer {
  public:
-  void render(const PinholeCamera& cam, const ProbeGeometry& probe, const ProbeLook& look,
+  void render(const CameraModel& cam, const ProbeGeometry& probe, const ProbeLook& look,
               int width, int height);
   bool empty() const { return rows_.empty(); }
   // Coverage (body + marker, each in [0, 1]) and camera depth at a pixel (0, 0, +inf off-probe).
@@ -158,10 +158,5 @@ class ProbeLayer {
   std::vector<Sample> samples_;
   std::uint8_t grey_ = 90, marker_grey_ = 255;
 };
-
-// Pixel -> normalised camera coordinates (x/z, y/z) by inverting the distortion model
-// iteratively (fixed point, converged to 1e-12 or 30 iterations); used to cast rays through
-// pixels.
-Eigen::Vector2d undistort_pixel(const PinholeCamera& cam, double u, double v);
 
 }  // namespace hc::devices::sim

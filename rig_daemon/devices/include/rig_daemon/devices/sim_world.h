@@ -24,7 +24,7 @@
 #include "common/status.h"
 #include "rig_daemon/devices/clock.h"
 #include "rig_daemon/devices/hyperelastic_specimen.h"
-#include "rig_daemon/devices/pinhole.h"
+#include "rig_daemon/devices/sim_dots.h"
 #include "rig_daemon/devices/sim_scene.h"
 #include "rig_daemon/devices/specimen.h"
 #include "rig_daemon/devices/types.h"
@@ -130,7 +130,7 @@ struct GroundTruth {
 // A simulated camera as the world knows it (for occlusion truth and the session's metadata).
 struct CameraRecord {
   std::string name;
-  PinholeCamera camera;
+  CameraModel camera;
 };
 
 class World {
@@ -174,7 +174,7 @@ class World {
   // ---- Scene: cameras and calibration board ----
   // Simulated cameras register their true calibration when configured (a name registered again
   // replaces the earlier record).
-  void register_camera(const std::string& name, const PinholeCamera& camera);
+  void register_camera(const std::string& name, const CameraModel& camera);
   std::vector<CameraRecord> cameras() const;
   void show_board(BoardShow board);
   void hide_board();

@@ -1,4 +1,4 @@
-#include "calibration/cameras/camera_model.h"
+#include "camera/camera_model.h"
 
 #include <fmt/format.h>
 
@@ -15,7 +15,7 @@
 #include "common/config.h"
 #include "common/file_io.h"
 
-namespace hc::calib {
+namespace hc {
 
 Eigen::Matrix3d CameraModel::K() const {
   Eigen::Matrix3d k = Eigen::Matrix3d::Identity();
@@ -31,6 +31,13 @@ Eigen::Matrix<double, 3, 4> CameraModel::projection() const {
   rt.leftCols<3>() = R;
   rt.col(3) = t_m;
   return K() * rt;
+}
+
+Eigen::Isometry3d CameraModel::camera_from_reference() const {
+  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+  T.linear() = R;
+  T.translation() = t_m;
+  return T;
 }
 
 Eigen::Vector2d CameraModel::distort_normalized(const Eigen::Vector2d& xn) const {
@@ -158,7 +165,7 @@ bool read_matrix(ConfigNode parent, std::string_view key, int rows, int cols,
   return true;
 }
 
-void read_camera(ConfigNode node, CameraModel& c) {
+void read_file_camera(ConfigNode node, CameraModel& c) {
   node.required("image_width", c.width, Bounds::between(1, 1e6));
   node.required("image_height", c.height, Bounds::between(1, 1e6));
   Eigen::MatrixXd K, d, R, t;
@@ -201,7 +208,7 @@ Status parse(ConfigNode root, RigCalibration& rig) {
                                    name.substr(0, 64)));
       continue;
     }
-    read_camera(*node, c);
+    read_file_camera(*node, c);
     rig.cameras.push_back(std::move(c));
   }
   root.optional("joint_rms_px", rig.joint_rms_px, Bounds::non_negative());
@@ -282,4 +289,4 @@ Result<RigCalibration> read_rig_calibration(const std::filesystem::path& path) {
   return rig;
 }
 
-}  // namespace hc::calib
+}  // namespace hc
