@@ -1,4 +1,5 @@
-// Fuzzes the JSON decoders of the rig's time-series messages (rig_daemon/session/codec.h): any
+// Fuzzes the JSON decoders of the rig's time-series messages and the session's own records
+// (rig_daemon/session/codec.h): any
 // input must give a value or an error, never a crash; a decoded value re-encodes and decodes to
 // the same text.
 #include <cstddef>
@@ -27,5 +28,9 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   round_trip<WrenchSample>(text, wrench_sample_from_json);
   round_trip<ArmState>(text, arm_state_from_json);
   round_trip<ArmCommand>(text, arm_command_from_json);
+  round_trip<SyncRecord>(text, sync_record_from_json);
+  round_trip<StepRecord>(text, step_record_from_json);
+  round_trip<EventRecord>(text, event_record_from_json);
+  round_trip<GroundTruthRecord>(text, ground_truth_from_json);
   return 0;
 }

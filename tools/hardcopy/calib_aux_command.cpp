@@ -8,11 +8,11 @@
 #include <string>
 
 #include "calibration/arm/hand_eye_session.h"
-#include "camera/camera_model.h"
 #include "calibration/force/force_session.h"
 #include "calibration/force/fsr_fit.h"
 #include "calibration/force/fsr_io.h"
 #include "calibration/force/ft_bias.h"
+#include "camera/camera_model.h"
 #include "command.h"
 #include "common/json.h"
 

@@ -94,22 +94,14 @@ Result<HandEyeSessionData> read_hand_eye_session(const std::filesystem::path& se
       states.push_back({s->host_ns, s->pose});
       return true;
     }
-    Result<Json> j = rec::parse_json_message(e.message.data);
-    if (!j.ok() || !j->is_object()) return true;  // truth is optional: skip what we cannot use
-    const auto ti = j->find("trigger_index");
-    const auto sm = j->find("shaft_markers_m");
-    if (ti == j->end() || !ti->is_number_unsigned() || sm == j->end() || !sm->is_array() ||
-        sm->size() != 2)
-      return true;
-    std::array<Eigen::Vector3d, 2> m;
-    for (std::size_t k = 0; k < 2; ++k) {
-      const Json& p = (*sm)[k];
-      if (!p.is_array() || p.size() != 3 || !p[0].is_number() || !p[1].is_number() ||
-          !p[2].is_number())
-        return true;
-      m[k] = Eigen::Vector3d(p[0].get<double>(), p[1].get<double>(), p[2].get<double>());
+    Result<hc::session::GroundTruthRecord> t = hc::session::ground_truth_from_json(
+        {reinterpret_cast<const char*>(e.message.data.data()), e.message.data.size()});
+    if (!t.ok()) {
+      error = t.status().with_context(
+          fmt::format("{}: {} sequence {}", name, e.channel->topic, e.message.sequence));
+      return false;
     }
-    truth[ti->get<std::uint64_t>()] = m;
+    if (t->trigger_index) truth[*t->trigger_index] = t->shaft_markers_m;
     return true;
   }));
   HC_RETURN_IF_ERROR(error);

@@ -18,7 +18,7 @@
 #include "rig_daemon/recording/foxglove_image.h"
 #include "rig_daemon/recording/mcap_reader.h"
 #include "rig_daemon/recording/session_conventions.h"
-#include "rig_daemon/session/topics.h"
+#include "rig_daemon/session/session_reader.h"
 
 namespace hc::calib {
 
@@ -45,32 +45,12 @@ std::string no_board_message(const CameraObservations& cam, int images, const Bo
 using TriggerIndexes = std::map<std::string, std::map<std::uint64_t, std::int64_t>>;
 Result<TriggerIndexes> read_sync_triggers(const recording::McapReader& reader,
                                           const std::string& file) {
+  HC_ASSIGN_OR_RETURN(session::SessionRecords records,
+                      session::read_session_records(reader, {.sync = true, .steps = false}, file));
   TriggerIndexes trigger_of;
-  const std::string sync_topic(session::kSyncTopic);
-  if (reader.find_channel(sync_topic) != nullptr) {
-    Status parse_status;
-    HC_RETURN_IF_ERROR(
-        reader.read_messages({.topics = {sync_topic}}, [&](const recording::MessageEvent& m) {
-          Result<Json> j = recording::parse_json_message(m.message.data);
-          if (!j.ok()) {
-            parse_status = j.status().with_context(file + ": " + sync_topic);
-            return false;
-          }
-          if (!j->is_object() || !j->contains("trigger_index") || !j->contains("frames") ||
-              !(*j)["frames"].is_object() || !(*j)["trigger_index"].is_number_integer()) {
-            parse_status = invalid_argument(file +
-                                            ": /session/sync record without trigger_index "
-                                            "and frames");
-            return false;
-          }
-          const std::int64_t trig = (*j)["trigger_index"].get<std::int64_t>();
-          for (const auto& [cam, seq] : (*j)["frames"].items())
-            if (seq.is_number_unsigned() || seq.is_number_integer())
-              trigger_of[cam][seq.get<std::uint64_t>()] = trig;
-          return true;
-        }));
-    HC_RETURN_IF_ERROR(parse_status);
-  }
+  for (const session::SyncRecord& r : records.sync)
+    for (const auto& [camera, frame] : r.frames)
+      trigger_of[camera][frame] = static_cast<std::int64_t>(r.trigger_index);
   return trigger_of;
 }
 

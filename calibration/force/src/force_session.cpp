@@ -135,14 +135,13 @@ Result<ForceSession> read_force_session(const std::filesystem::path& path,
       }
       out.fsr.push_back({s->host_ns, static_cast<double>(s->raw), s->trigger_index});
     } else if (truth && e.channel->id == truth->id) {
-      Result<Json> j = rec::parse_json_message(e.message.data);
-      if (!j.ok() || !j->is_object() || !(*j)["host_ns"].is_number_integer() ||
-          !(*j)["force_n"].is_number()) {
-        error = invalid_argument(fmt::format("{}: {} sequence {}: expected host_ns and force_n",
-                                             name, truth->topic, e.message.sequence));
+      Result<session::GroundTruthRecord> t = session::ground_truth_from_json(text);
+      if (!t.ok()) {
+        error = t.status().with_context(
+            fmt::format("{}: {} sequence {}", name, truth->topic, e.message.sequence));
         return false;
       }
-      out.truth.push_back({(*j)["host_ns"].get<std::int64_t>(), (*j)["force_n"].get<double>()});
+      out.truth.push_back({t->host_ns, t->force_n});
     }
     return true;
   });

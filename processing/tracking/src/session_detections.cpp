@@ -23,21 +23,14 @@
 #include "rig_daemon/recording/foxglove_image.h"
 #include "rig_daemon/recording/mcap_reader.h"
 #include "rig_daemon/recording/session_conventions.h"
+#include "rig_daemon/session/session_reader.h"
 #include "rig_daemon/session/topics.h"
 #include "session_tracking_internal.h"
 
 namespace hc::tracking {
 namespace {
 
-// JSON field helpers: a malformed session message is bad input, never an exception.
-bool get_vec3(const Json& j, const char* key, Eigen::Vector3d& out) {
-  if (!j.contains(key) || !j[key].is_array() || j[key].size() != 3) return false;
-  for (int i = 0; i < 3; ++i) {
-    if (!j[key][static_cast<std::size_t>(i)].is_number()) return false;
-    out[i] = j[key][static_cast<std::size_t>(i)].get<double>();
-  }
-  return out.allFinite();
-}
+// A JSON field of a metadata record: a malformed one is bad input, never an exception.
 template <typename T>
 bool get_int(const Json& j, const char* key, T& out) {
   if (!j.contains(key) || !j[key].is_number_integer()) return false;
@@ -173,110 +166,64 @@ struct Sync {
   bool has_force = false;
 };
 
-// The session's JSON records: sync (by trigger index), steps, ground truth (by trigger index).
+// The session's records: sync (by trigger index), steps, ground truth (by trigger index).
 struct JsonRecords {
   std::map<std::uint64_t, Sync> sync;
   std::vector<SessionStep> steps;
-  std::map<std::uint64_t, Json> truth;
+  std::map<std::uint64_t, session::GroundTruthRecord> truth;
 };
 
 // A step record: its first trigger index, location/level/step and the arm's pose.
-Status parse_step_record(const Json& j, const std::string& name, SessionStep* st) {
-  if (!j.contains("trigger_indices") || !j["trigger_indices"].is_array() ||
-      j["trigger_indices"].empty() || !j["trigger_indices"][0].is_number_integer())
+Status parse_step_record(const session::StepRecord& r, const std::string& name,
+                         SessionStep* st) {
+  if (r.trigger_indices.empty())
     return invalid_argument(fmt::format("{}: step record without trigger_indices", name));
-  st->trigger_index = j["trigger_indices"][0].get<std::uint64_t>();
-  get_int(j, "location", st->location);
-  get_int(j, "level", st->level);
-  get_int(j, "step", st->step);
-  if (j.contains("pose") && j["pose"].is_object()) {
-    const Json& p = j["pose"];
-    if (p.contains("x_m") && p["x_m"].is_number() && p.contains("y_m") && p["y_m"].is_number() &&
-        p.contains("z_m") && p["z_m"].is_number())
-      st->probe_tip_m =
-          Eigen::Vector3d(p["x_m"].get<double>(), p["y_m"].get<double>(), p["z_m"].get<double>());
-  }
+  st->trigger_index = r.trigger_indices.front();
+  st->location = r.location.value_or(-1);
+  st->level = r.level.value_or(-1);
+  st->step = r.step;
+  if (r.pose) st->probe_tip_m = Eigen::Vector3d(r.pose->x_m, r.pose->y_m, r.pose->z_m);
   return {};
 }
 
 Result<JsonRecords> read_json_records(const recording::McapReader& reader,
                                       const std::string& name) {
+  HC_ASSIGN_OR_RETURN(
+      session::SessionRecords records,
+      session::read_session_records(reader, {.sync = true, .steps = true, .ground_truth = true},
+                                    name));
   JsonRecords rec;
-  Status bad;
-  recording::ReadOptions ro;
-  ro.topics = {std::string(session::kSyncTopic), std::string(session::kStepsTopic),
-               std::string(session::kGroundTruthTopic)};
-  ro.order = recording::ReadOrder::kLogTime;
-  const Status read = reader.read_messages(ro, [&](const recording::MessageEvent& e) {
-    Result<Json> j = recording::parse_json_message(e.message.data);
-    if (!j.ok() || !j->is_object()) {
-      bad = invalid_argument(fmt::format("{}: {} message {} is not a JSON object", name,
-                                         e.channel->topic, e.message.sequence));
-      return false;
-    }
-    const std::string& topic = e.channel->topic;
-    if (topic == session::kSyncTopic) {
-      std::uint64_t index = 0;
-      Sync s;
-      if (!get_int(*j, "trigger_index", index) || !get_int(*j, "edge_host_ns", s.edge_ns)) {
-        bad = invalid_argument(
-            fmt::format("{}: sync record without trigger_index/edge_host_ns", name));
-        return false;
-      }
-      s.has_force = get_vec3(*j, "force_n", s.force);
-      rec.sync[index] = s;
-    } else if (topic == session::kStepsTopic) {
-      SessionStep st;
-      bad = parse_step_record(*j, name, &st);
-      if (!bad.ok()) return false;
-      rec.steps.push_back(std::move(st));
-    } else {
-      std::uint64_t index = 0;
-      if (get_int(*j, "trigger_index", index)) rec.truth[index] = std::move(*j);
-    }
-    return true;
-  });
-  if (!read.ok()) return invalid_argument(read.to_string());
-  HC_RETURN_IF_ERROR(bad);
+  for (const session::SyncRecord& r : records.sync) {
+    Sync s;
+    s.edge_ns = r.edge_host_ns;
+    s.force = Eigen::Vector3d(r.force_n[0], r.force_n[1], r.force_n[2]);
+    s.has_force = r.ft_sequence.has_value() && s.force.allFinite();
+    rec.sync[r.trigger_index] = s;
+  }
+  for (const session::StepRecord& r : records.steps) {
+    SessionStep st;
+    HC_RETURN_IF_ERROR(parse_step_record(r, name, &st));
+    rec.steps.push_back(std::move(st));
+  }
+  for (session::GroundTruthRecord& t : records.ground_truth)
+    if (t.trigger_index) rec.truth[*t.trigger_index] = std::move(t);
   if (rec.sync.empty())
     return invalid_argument(fmt::format("{}: no /session/sync records (no trigger edges)", name));
   return rec;
 }
 
-// An array of 3-vectors (`key` of a ground-truth record) appended to *out; absent is fine.
-Status read_truth_points(const Json& t, const char* key, const std::string& name,
-                         std::vector<Eigen::Vector3d>* out) {
-  if (!t.contains(key) || !t[key].is_array()) return {};
-  for (const Json& m : t[key]) {
-    if (!m.is_array() || m.size() != 3 || !m[0].is_number() || !m[1].is_number() ||
-        !m[2].is_number())
-      return invalid_argument(fmt::format("{}: ground truth {} malformed", name, key));
-    out->emplace_back(m[0].get<double>(), m[1].get<double>(), m[2].get<double>());
-  }
-  return {};
-}
-
 // A step's ground truth: markers, probe tip and axis, shaft markers, occluded markers per camera.
-Status read_step_truth(const Json& t, const std::string& name,
-                       const std::vector<CameraModel>& cameras, SessionStep* st) {
-  if (!t.contains("markers_m") || !t["markers_m"].is_array()) return {};
-  HC_RETURN_IF_ERROR(read_truth_points(t, "markers_m", name, &st->truth_markers_m));
-  Eigen::Vector3d v;
-  if (get_vec3(t, "probe_tip_m", v)) st->truth_probe_tip_m = v;
-  if (get_vec3(t, "probe_axis", v)) st->truth_probe_axis = v;
-  HC_RETURN_IF_ERROR(read_truth_points(t, "shaft_markers_m", name, &st->truth_shaft_markers_m));
-  if (t.contains("cameras") && t["cameras"].is_object()) {
-    st->truth_occluded.resize(cameras.size());
-    for (std::size_t c = 0; c < cameras.size(); ++c) {
-      const Json& cams = t["cameras"];
-      if (!cams.contains(cameras[c].name)) continue;
-      const Json& cj = cams[cameras[c].name];
-      if (cj.is_object() && cj.contains("occluded") && cj["occluded"].is_array())
-        for (const Json& i : cj["occluded"])
-          if (i.is_number_unsigned()) st->truth_occluded[c].push_back(i.get<std::uint32_t>());
-    }
-  }
-  return {};
+void read_step_truth(const session::GroundTruthRecord& t, const std::vector<CameraModel>& cameras,
+                     SessionStep* st) {
+  if (t.markers_m.empty()) return;  // a board was shown
+  st->truth_markers_m = t.markers_m;
+  st->truth_probe_tip_m = t.probe_tip_m;
+  st->truth_probe_axis = t.probe_axis;
+  st->truth_shaft_markers_m.assign(t.shaft_markers_m.begin(), t.shaft_markers_m.end());
+  st->truth_occluded.resize(cameras.size());
+  for (std::size_t c = 0; c < cameras.size(); ++c)
+    if (auto cam = t.cameras.find(cameras[c].name); cam != t.cameras.end())
+      st->truth_occluded[c] = cam->second.occluded;
 }
 
 // The steps to track (one per sync record when the session has no step records), each with its
@@ -307,7 +254,7 @@ Result<std::vector<SessionStep>> session_steps(JsonRecords rec, const std::strin
     st.shaft_detections.assign(nc, {});
     st.frames_found.assign(nc, 0);
     if (auto t = rec.truth.find(st.trigger_index); t != rec.truth.end())
-      HC_RETURN_IF_ERROR(read_step_truth(t->second, name, cameras, &st));
+      read_step_truth(t->second, cameras, &st);
   }
   return steps;
 }

@@ -12,26 +12,6 @@ constexpr std::size_t kMaxClosed = 100000;
 std::int64_t abs_ns(std::int64_t v) { return v < 0 ? -v : v; }
 }  // namespace
 
-Json SyncRecord::to_json() const {
-  Json j{{"trigger_index", trigger_index}, {"edge_host_ns", edge_host_ns}, {"complete", complete}};
-  Json fr = Json::object();
-  for (const auto& [cam, idx] : frames) fr[cam] = idx;
-  j["frames"] = fr;
-  j["missing_cameras"] = missing_cameras;
-  if (ft_sequence) {
-    j["ft_sequence"] = *ft_sequence;
-    j["ft_error_ns"] = ft_error_ns;
-    j["force_n"] = Json::array({force_n[0], force_n[1], force_n[2]});
-  }
-  if (fsr_sequence) {
-    j["fsr_sequence"] = *fsr_sequence;
-    j["fsr_error_ns"] = fsr_error_ns;
-    j["fsr_raw"] = fsr_raw;
-    j["fsr_force_n"] = fsr_force_n;
-  }
-  return j;
-}
-
 Json AssociationStats::to_json() const {
   const auto ratio = [](std::uint64_t a, std::uint64_t b) {
     return b == 0 ? 1.0 : double(a) / double(b);

@@ -6,6 +6,7 @@
 #include <sstream>
 
 #include "rig_daemon/recording/session_conventions.h"
+#include "rig_daemon/session/codec.h"
 #include "rig_daemon/session/topics.h"
 #include "session_impl.h"
 
@@ -126,7 +127,7 @@ Json Session::Impl::finish(Status run_status) {
     if (Result<dev::ArmState> st = arm->read(); st.ok()) record_arm_state(*st);
   for (SyncRecord& r : assoc->take_all()) {
     recorder->write(ch_sync, r.edge_host_ns, r.edge_host_ns,
-                    static_cast<std::uint32_t>(r.trigger_index), rec::json_message(r.to_json()));
+                    static_cast<std::uint32_t>(r.trigger_index), to_bytes(session::to_json(r)));
     std::lock_guard lock(progress_mutex);
     ++done;
   }

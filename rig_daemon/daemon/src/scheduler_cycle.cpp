@@ -16,8 +16,11 @@ namespace hc::rig {
 
 void Session::Impl::record_event(std::string_view kind, const std::string& message) {
   const std::int64_t now = clock().now_ns();
-  recorder->write(ch_events, now, now, 0,
-                  rec::json_message(Json{{"host_ns", now}, {"kind", kind}, {"message", message}}));
+  session::EventRecord event;
+  event.host_ns = now;
+  event.kind = kind;
+  event.message = message;
+  recorder->write(ch_events, now, now, 0, to_bytes(session::to_json(event)));
   if (opts.on_event) opts.on_event("log", Json{{"kind", kind}, {"message", message}});
 }
 
@@ -132,7 +135,7 @@ Status Session::Impl::poll() {
   const std::int64_t now = clock().now_ns();
   for (SyncRecord& r : assoc->take_ready(now)) {
     recorder->write(ch_sync, r.edge_host_ns, r.edge_host_ns,
-                    static_cast<std::uint32_t>(r.trigger_index), rec::json_message(r.to_json()));
+                    static_cast<std::uint32_t>(r.trigger_index), to_bytes(session::to_json(r)));
     std::lock_guard lock(progress_mutex);
     ++done;
   }

@@ -233,16 +233,18 @@ Status Session::Impl::run_automated() {
         std::vector<std::uint64_t> indices;
         HC_RETURN_IF_ERROR(fire_and_collect(indices, p.frames_per_step));
         const std::int64_t now = clock().now_ns();
-        Json step{{"host_ns", now},
-                  {"location", li},
-                  {"level", lv},
-                  {"step", k},
-                  {"target_force_n", target},
-                  {"force_n", current_force()},
-                  {"depth_m", depth},
-                  {"pose", pose_json(at_depth(depth))},
-                  {"trigger_indices", indices}};
-        recorder->write(ch_steps, now, now, static_cast<std::uint32_t>(k), rec::json_message(step));
+        session::StepRecord step;
+        step.host_ns = now;
+        step.step = k;
+        step.trigger_indices = std::move(indices);
+        step.location = static_cast<int>(li);
+        step.level = static_cast<int>(lv);
+        step.target_force_n = target;
+        step.force_n = current_force();
+        step.depth_m = depth;
+        step.pose = at_depth(depth);
+        recorder->write(ch_steps, now, now, static_cast<std::uint32_t>(k),
+                        to_bytes(session::to_json(step)));
       }
       // Retract before the next level or location.
       HC_RETURN_IF_ERROR(move_to(start, kApproachSpeedMps));
@@ -275,8 +277,13 @@ Status Session::Impl::run_calibration() {
     std::vector<std::uint64_t> indices;
     HC_RETURN_IF_ERROR(fire_and_collect(indices, 1));
     const std::int64_t now = clock().now_ns();
-    Json step{{"host_ns", now}, {"board_pose", k}, {"step", k + 1}, {"trigger_indices", indices}};
-    recorder->write(ch_steps, now, now, static_cast<std::uint32_t>(k + 1), rec::json_message(step));
+    session::StepRecord step;
+    step.host_ns = now;
+    step.step = k + 1;
+    step.trigger_indices = std::move(indices);
+    step.board_pose = k;
+    recorder->write(ch_steps, now, now, static_cast<std::uint32_t>(k + 1),
+                    to_bytes(session::to_json(step)));
   }
   return {};
 }

@@ -15,47 +15,6 @@
 
 namespace hc::rig {
 
-namespace {
-
-Json vec_json(const Eigen::Vector3d& v) { return Json::array({v.x(), v.y(), v.z()}); }
-
-Json mat_json(const Eigen::Matrix3d& m) {
-  Json rows = Json::array();
-  for (int i = 0; i < 3; ++i) rows.push_back(Json::array({m(i, 0), m(i, 1), m(i, 2)}));
-  return rows;
-}
-
-std::string_view kSyncSchema =
-    R"({"type":"object","title":"hardcopy.SyncRecord","properties":{)"
-    R"("trigger_index":{"type":"integer"},"edge_host_ns":{"type":"integer","description":"host monotonic ns of the rising edge"},)"
-    R"("complete":{"type":"boolean"},"frames":{"type":"object","description":"camera -> frame_index"},)"
-    R"("missing_cameras":{"type":"array","items":{"type":"string"}},"ft_sequence":{"type":"integer"},)"
-    R"("ft_error_ns":{"type":"integer","description":"F/T sample host time - edge host time, ns"},)"
-    R"("force_n":{"type":"array","items":{"type":"number"},"description":"Fx Fy Fz, N"},)"
-    R"("fsr_sequence":{"type":"integer"},"fsr_error_ns":{"type":"integer"},"fsr_raw":{"type":"integer"},)"
-    R"("fsr_force_n":{"type":"number","description":"N"}}})";
-std::string_view kStepSchema =
-    R"({"type":"object","title":"hardcopy.Step","properties":{)"
-    R"("host_ns":{"type":"integer"},"location":{"type":"integer"},"level":{"type":"integer"},)"
-    R"("step":{"type":"integer"},"target_force_n":{"type":"number"},"force_n":{"type":"number"},)"
-    R"("depth_m":{"type":"number"},"pose":{"type":"object"},"trigger_indices":{"type":"array","items":{"type":"integer"}},)"
-    R"("board_pose":{"type":"integer","description":"calibration: index of the board pose"}}})";
-std::string_view kEventSchema =
-    R"({"type":"object","title":"hardcopy.Event","properties":{)"
-    R"("host_ns":{"type":"integer"},"kind":{"type":"string"},"message":{"type":"string"}}})";
-std::string_view kTruthSchema =
-    R"({"type":"object","title":"hardcopy.GroundTruth","properties":{)"
-    R"("host_ns":{"type":"integer"},"trigger_index":{"type":"integer"},"probe":{"type":"object"},)"
-    R"("indentation_m":{"type":"number"},"force_n":{"type":"number","description":"true contact force, N"},)"
-    R"("markers_m":{"type":"array","items":{"type":"array","items":{"type":"number"}}},)"
-    R"("probe_tip_m":{"type":"array","items":{"type":"number"}},"probe_axis":{"type":"array","items":{"type":"number"}},)"
-    R"("probe_radius_m":{"type":"number"},"probe_shown":{"type":"boolean"},)"
-    R"("shaft_markers_m":{"type":"array","items":{"type":"array","items":{"type":"number"}}},"shaft_marker_radius_m":{"type":"number"},)"
-    R"("cameras":{"type":"object","description":"camera -> {occluded: [marker index], out_of_view: [marker index], board_visible}"},)"
-    R"("board":{"type":"object","description":"pose_index, cols, rows, square_m, R (rows), t_m: x_world = R x_board + t"}}})";
-
-}  // namespace
-
 // ---- setup ----------------------------------------------------------------------------------
 
 // The devices of the plan, the associator and the safety monitor.
@@ -159,19 +118,22 @@ Status Session::Impl::open_recording() {
                         recorder->add_json_channel(session::arm_command_topic(arm->name()), c.name,
                                                    c.json_schema, meta(*arm)));
   }
-  HC_ASSIGN_OR_RETURN(
-      ch_sync, recorder->add_json_channel(session::kSyncTopic, "hardcopy.SyncRecord", kSyncSchema,
-                                          session_meta));
-  HC_ASSIGN_OR_RETURN(ch_steps, recorder->add_json_channel(session::kStepsTopic, "hardcopy.Step",
-                                                           kStepSchema, session_meta));
-  HC_ASSIGN_OR_RETURN(ch_events, recorder->add_json_channel(session::kEventsTopic, "hardcopy.Event",
-                                                            kEventSchema, session_meta));
+  const auto add_session_channel = [&](std::string_view topic, const session::MessageSchema& c,
+                                       const rec::StringMap& metadata) {
+    return recorder->add_json_channel(topic, c.name, c.json_schema, metadata);
+  };
+  HC_ASSIGN_OR_RETURN(ch_sync, add_session_channel(session::kSyncTopic,
+                                                   session::sync_record_schema(), session_meta));
+  HC_ASSIGN_OR_RETURN(ch_steps, add_session_channel(session::kStepsTopic,
+                                                    session::step_record_schema(), session_meta));
+  HC_ASSIGN_OR_RETURN(ch_events, add_session_channel(session::kEventsTopic,
+                                                     session::event_record_schema(), session_meta));
   have_truth = rig.world() != nullptr;
   if (have_truth) {
     HC_ASSIGN_OR_RETURN(
         ch_truth,
-        recorder->add_json_channel(
-            session::kGroundTruthTopic, "hardcopy.GroundTruth", kTruthSchema,
+        add_session_channel(
+            session::kGroundTruthTopic, session::ground_truth_schema(),
             rec::StringMap{{"device", "world"}, {"kind", "ground_truth"}, {"backend", "sim"}}));
   }
   return {};
@@ -237,7 +199,7 @@ Status Session::Impl::write_opening_metadata() {
       show.dwell_ns = std::max<std::int64_t>(1, std::llround(p.dwell_s * 1e9));
       Json poses = Json::array();
       for (const dev::sim::BoardPose& b : show.poses)
-        poses.push_back({{"R", mat_json(b.R)}, {"t_m", vec_json(b.t)}});
+        poses.push_back({{"R", eigen_to_json(b.R)}, {"t_m", eigen_to_json(b.t)}});
       const Json board{{"cols", p.board_cols},   {"rows", p.board_rows},
                        {"square_m", p.square_m}, {"margin_squares", p.margin_squares},
                        {"seed", p.seed},         {"poses", std::move(poses)}};
@@ -257,37 +219,11 @@ Status Session::Impl::setup() {
 
   if (have_truth) {
     rig.world()->set_ground_truth_callback([this](const dev::sim::GroundTruth& t) {
-      Json j{{"host_ns", t.host_ns},
-             {"probe", pose_json(t.probe)},
-             {"indentation_m", t.indentation_m},
-             {"force_n", t.force_n}};
-      if (t.trigger_index) j["trigger_index"] = *t.trigger_index;
-      Json markers = Json::array();
-      for (const auto& m : t.markers_m) markers.push_back(vec_json(m));
-      j["markers_m"] = std::move(markers);
-      const dev::sim::ProbeGeometry& g = t.probe_geometry;
-      j["probe_tip_m"] = vec_json(g.tip_m);
-      j["probe_axis"] = vec_json(g.axis);
-      j["probe_radius_m"] = g.radius_m;
-      j["probe_shown"] = t.probe_shown;
-      j["shaft_markers_m"] = Json::array({vec_json(g.markers_m[0]), vec_json(g.markers_m[1])});
-      j["shaft_marker_radius_m"] = g.marker_radius_m;
-      Json cams = Json::object();
-      for (const dev::sim::CameraTruth& c : t.cameras) {
-        if (!session_cameras.count(c.camera)) continue;
-        cams[c.camera] = {{"occluded", c.occluded},
-                          {"out_of_view", c.out_of_view},
-                          {"board_visible", c.board_visible}};
-      }
-      j["cameras"] = std::move(cams);
-      if (t.board_pose_index) {
-        j["board"] = {{"pose_index", *t.board_pose_index}, {"cols", t.board_spec.cols},
-                      {"rows", t.board_spec.rows},         {"square_m", t.board_spec.square_m},
-                      {"R", mat_json(t.board_pose.R)},     {"t_m", vec_json(t.board_pose.t)}};
-      }
+      session::GroundTruthRecord r = t.record();
+      std::erase_if(r.cameras, [&](const auto& c) { return !session_cameras.count(c.first); });
       recorder->write(ch_truth, t.host_ns, t.host_ns,
                       static_cast<std::uint32_t>(t.trigger_index.value_or(0)),
-                      rec::json_message(j));
+                      to_bytes(session::to_json(r)));
     });
   }
 

@@ -42,11 +42,23 @@ void Session::Impl::handle_trip(SafetyTrip t) {
   const std::int64_t early = estop_stop_ns.load();
   record_arm_stop(t.kind == SafetyTrip::Kind::kEstop && early >= 0 ? early : t.stop_sent_ns);
   const std::int64_t now = t.stop_sent_ns;
-  Json j = t.to_json();
-  j["host_ns"] = now;
-  j["kind"] = to_string(t.kind);
-  recorder->write(ch_events, now, now, 0, rec::json_message(j));
-  if (opts.on_event) opts.on_event("safety", j);
+  session::EventRecord event;
+  event.host_ns = now;
+  event.kind = to_string(t.kind);
+  event.message = t.message;
+  event.detected_ns = t.detected_ns;
+  event.stop_sent_ns = t.stop_sent_ns;
+  if (t.kind == SafetyTrip::Kind::kOverForce) {
+    event.sample_host_ns = t.sample_host_ns;
+    event.force_n = t.force_n;
+    event.latency_ns = t.latency_ns();
+  }
+  recorder->write(ch_events, now, now, 0, to_bytes(session::to_json(event)));
+  if (opts.on_event) {
+    Json j = t.to_json();
+    j["host_ns"] = now;
+    opts.on_event("safety", j);
+  }
 }
 
 Status Session::Impl::check_start_conditions() {

@@ -473,4 +473,30 @@ std::optional<Fault> World::fault(std::string_view device, Fault::Kind kind,
   return std::nullopt;
 }
 
+session::GroundTruthRecord GroundTruth::record() const {
+  session::GroundTruthRecord r;
+  r.host_ns = host_ns;
+  r.trigger_index = trigger_index;
+  r.probe = probe;
+  r.indentation_m = indentation_m;
+  r.force_n = force_n;
+  r.markers_m = markers_m;
+  r.probe_tip_m = probe_geometry.tip_m;
+  r.probe_axis = probe_geometry.axis;
+  r.probe_radius_m = probe_geometry.radius_m;
+  r.probe_shown = probe_shown;
+  r.shaft_markers_m = probe_geometry.markers_m;
+  r.shaft_marker_radius_m = probe_geometry.marker_radius_m;
+  for (const CameraTruth& c : cameras)
+    r.cameras[c.camera] = {c.occluded, c.out_of_view, c.board_visible};
+  if (board_pose_index)
+    r.board = session::GroundTruthRecord::Board{static_cast<int>(*board_pose_index),
+                                                board_spec.cols,
+                                                board_spec.rows,
+                                                board_spec.square_m,
+                                                board_pose.R,
+                                                board_pose.t};
+  return r;
+}
+
 }  // namespace hc::devices::sim

@@ -9,12 +9,13 @@
 #include <fstream>
 
 #include "calibration/cameras/board.h"
-#include "camera/camera_model.h"
 #include "calibration/cameras/synthetic.h"
+#include "camera/camera_model.h"
 #include "cli_run.h"
 #include "rig_daemon/recording/foxglove_image.h"
 #include "rig_daemon/recording/mcap_writer.h"
 #include "rig_daemon/recording/session_conventions.h"
+#include "rig_daemon/session/codec.h"
 #include "test_data.h"
 
 namespace hc::calib {
@@ -164,7 +165,7 @@ TEST(CalibCli, SessionRecoversKnownRig) {
     std::vector<ChessboardRenderer> renderers;
     for (const CameraModel& c : truth) renderers.emplace_back(c, board);
     for (std::size_t k = 0; k < poses.size(); ++k) {
-      Json frames = Json::object();
+      std::map<std::string, std::uint64_t> frames;
       for (std::size_t c = 0; c < truth.size(); ++c) {
         const std::uint32_t seq = static_cast<std::uint32_t>(100 * (c + 1) + 3 * k);
         recording::RawImage img;
@@ -180,8 +181,11 @@ TEST(CalibCli, SessionRecoversKnownRig) {
         ASSERT_TRUE((*w)->write_message(ch[c], k * 1000 + c, k * 1000 + c, msg, seq).ok());
         frames[truth[c].name] = seq;
       }
-      const recording::Bytes s =
-          recording::json_message(Json{{"trigger_index", k + 7}, {"frames", frames}});
+      session::SyncRecord record;
+      record.trigger_index = static_cast<std::uint64_t>(k + 7);
+      record.frames = frames;
+      const std::string text = session::to_json(record);
+      const recording::Bytes s(text.begin(), text.end());
       ASSERT_TRUE((*w)->write_message(*sync, k * 1000 + 5, k * 1000 + 5, s).ok());
     }
     ASSERT_TRUE((*w)->close().ok());

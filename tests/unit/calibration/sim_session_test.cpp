@@ -10,14 +10,14 @@
 
 #include <nlohmann/json.hpp>
 
-#include "camera/camera_model.h"
 #include "calibration/cameras/synthetic.h"
+#include "camera/camera_model.h"
 #include "cli_run.h"
 #include "rig_daemon/daemon/plan.h"
 #include "rig_daemon/daemon/rig_config.h"
+#include "sanitizer.h"
 #include "sim_session.h"
 #include "test_data.h"
-#include "sanitizer.h"
 
 namespace hc::calib {
 namespace {

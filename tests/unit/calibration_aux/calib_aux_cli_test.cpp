@@ -4,8 +4,8 @@
 
 #include <filesystem>
 
-#include "camera/camera_model.h"
 #include "calibration/force/fsr_io.h"
+#include "camera/camera_model.h"
 #include "cli_run.h"
 #include "common/file_io.h"
 #include "common/json.h"

@@ -97,9 +97,10 @@ inline Status record_sim_force_session(const std::filesystem::path& path,
     HC_ASSIGN_OR_RETURN(ch_fsr, rec->add_json_channel(session::fsr_topic("fsr"), s.name,
                                                       s.json_schema, meta("fsr", "fsr")));
   }
-  HC_ASSIGN_OR_RETURN(ch_truth,
-                      rec->add_json_channel(session::kGroundTruthTopic, "hardcopy.GroundTruth",
-                                            R"({"type":"object"})", meta("world", "ground_truth")));
+  const session::MessageSchema& truth_schema = session::ground_truth_schema();
+  HC_ASSIGN_OR_RETURN(ch_truth, rec->add_json_channel(session::kGroundTruthTopic,
+                                                      truth_schema.name, truth_schema.json_schema,
+                                                      meta("world", "ground_truth")));
   const dev::FsrCalibration fc = fsr->calibration();
   Json calib{{"ft",
               {{"counts_per_n", ft->calibration().counts_per_n},
@@ -133,8 +134,10 @@ inline Status record_sim_force_session(const std::filesystem::path& path,
         for (const auto& s : fbuf) {
           rec->write(ch_fsr, s.host_ns, s.host_ns, static_cast<std::uint32_t>(s.sequence),
                      to_bytes(session::to_json(s)));
-          const Json t{{"host_ns", s.host_ns}, {"force_n", world->true_force_n(s.host_ns)}};
-          rec->write(ch_truth, s.host_ns, s.host_ns, 0, recording::json_message(t));
+          session::GroundTruthRecord t;
+          t.host_ns = s.host_ns;
+          t.force_n = world->true_force_n(s.host_ns);
+          rec->write(ch_truth, s.host_ns, s.host_ns, 0, to_bytes(session::to_json(t)));
         }
     }
     return {};

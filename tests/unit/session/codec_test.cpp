@@ -79,7 +79,8 @@ TEST(Codec, RoundTripsEveryMessage) {
 TEST(Codec, SchemasAreJsonDocumentsNamingTheirType) {
   for (const MessageSchema* s :
        {&trigger_edge_schema(), &fsr_sample_schema(), &wrench_sample_schema(), &arm_state_schema(),
-        &arm_command_schema()}) {
+        &arm_command_schema(), &sync_record_schema(), &step_record_schema(),
+        &event_record_schema(), &ground_truth_schema()}) {
     EXPECT_TRUE(s->name.starts_with("hardcopy."));
     EXPECT_NE(s->json_schema.find(std::string("\"title\": \"") + std::string(s->name) + "\""),
               std::string::npos)
@@ -132,6 +133,107 @@ TEST(Codec, MalformedMessagesAreRejected) {
   expect_rejected(
       arm_command_from_json(R"({"type":"jump","target":{},"speed_m_s":0,"sequence":0})").status(),
       "jump");
+}
+
+// The session's own records (session_records.h): what the daemon writes reads back the same.
+TEST(Codec, RoundTripsTheSessionRecords) {
+  SyncRecord y;
+  y.trigger_index = 41;
+  y.edge_host_ns = 9'000'000'123;
+  y.complete = false;
+  y.frames = {{"cam0", 40}, {"cam1", 39}};
+  y.missing_cameras = {"cam2"};
+  y.ft_sequence = 7001;
+  y.ft_error_ns = -120'000;
+  y.force_n = {0.1, -0.2, 4.5};
+  Result<SyncRecord> y2 = sync_record_from_json(to_json(y));
+  ASSERT_TRUE(y2.ok()) << y2.status().to_string();
+  EXPECT_EQ(to_json(*y2), to_json(y));
+  EXPECT_EQ(y2->frames.at("cam1"), 39u);
+  EXPECT_FALSE(y2->fsr_sequence);
+
+  StepRecord press;
+  press.host_ns = 5;
+  press.step = 3;
+  press.trigger_indices = {10, 11};
+  press.location = 2;
+  press.level = 1;
+  press.target_force_n = 5.0;
+  press.force_n = 5.04;
+  press.depth_m = 0.0021;
+  press.pose = ArmPose{0.01, -0.02, 0.0479, 0.0};
+  Result<StepRecord> press2 = step_record_from_json(to_json(press));
+  ASSERT_TRUE(press2.ok()) << press2.status().to_string();
+  EXPECT_EQ(to_json(*press2), to_json(press));
+  EXPECT_DOUBLE_EQ(press2->pose->z_m, 0.0479);
+  StepRecord board;
+  board.step = 1;
+  board.trigger_indices = {0};
+  board.board_pose = 0;
+  Result<StepRecord> board2 = step_record_from_json(to_json(board));
+  ASSERT_TRUE(board2.ok()) << board2.status().to_string();
+  EXPECT_FALSE(board2->location);
+  EXPECT_EQ(board2->board_pose, 0);
+
+  EventRecord trip;
+  trip.host_ns = 77;
+  trip.kind = "over_force";
+  trip.message = "force 31 N over the limit of 30 N";
+  trip.detected_ns = 70;
+  trip.stop_sent_ns = 72;
+  trip.sample_host_ns = 69;
+  trip.force_n = 31.0;
+  trip.latency_ns = 3;
+  Result<EventRecord> trip2 = event_record_from_json(to_json(trip));
+  ASSERT_TRUE(trip2.ok()) << trip2.status().to_string();
+  EXPECT_EQ(to_json(*trip2), to_json(trip));
+
+  GroundTruthRecord t;
+  t.host_ns = 123;
+  t.trigger_index = 4;
+  t.probe = {0.0, 0.0, 0.05, 0.3};
+  t.indentation_m = 0.001;
+  t.force_n = 2.5;
+  t.markers_m = {{0.0, 0.0, 0.05}, {0.003, 0.0, 0.0499}};
+  t.probe_tip_m = {0.0, 0.0, 0.049};
+  t.probe_axis = {0.0, 0.0, 1.0};
+  t.probe_radius_m = 0.005;
+  t.shaft_markers_m = {Eigen::Vector3d(0, 0, 0.11), Eigen::Vector3d(0, 0, 0.16)};
+  t.shaft_marker_radius_m = 0.0025;
+  t.cameras["cam0"] = {{1}, {}, false};
+  t.board = GroundTruthRecord::Board{2, 9, 6, 0.006, Eigen::Matrix3d::Identity(),
+                                     Eigen::Vector3d(0.0, 0.0, 0.05)};
+  Result<GroundTruthRecord> t2 = ground_truth_from_json(to_json(t));
+  ASSERT_TRUE(t2.ok()) << t2.status().to_string();
+  EXPECT_EQ(to_json(*t2), to_json(t));
+  EXPECT_EQ(t2->cameras.at("cam0").occluded, std::vector<std::uint32_t>{1});
+  EXPECT_EQ(t2->board->cols, 9);
+}
+
+TEST(Codec, MalformedSessionRecordsAreRejected) {
+  expect_rejected(sync_record_from_json(R"({"trigger_index":1,"edge_host_ns":0,"complete":true,)"
+                                        R"("frames":{"cam0":-1},"missing_cameras":[]})")
+                      .status(),
+                  "frames.cam0");
+  expect_rejected(sync_record_from_json(R"({"trigger_index":1,"edge_host_ns":0,"complete":true,)"
+                                        R"("frames":{},"missing_cameras":[],"ft_sequence":3})")
+                      .status(),
+                  "ft_error_ns");
+  expect_rejected(step_record_from_json(R"({"host_ns":0,"step":1})").status(), "trigger_indices");
+  expect_rejected(
+      step_record_from_json(R"({"host_ns":0,"step":1,"trigger_indices":[0],"location":-2})")
+          .status(),
+      "location");
+  expect_rejected(event_record_from_json(R"({"host_ns":0,"kind":"log"})").status(), "message");
+  expect_rejected(ground_truth_from_json(R"({"host_ns":0})").status(), "probe");
+  expect_rejected(
+      ground_truth_from_json(
+          R"({"host_ns":0,"probe":{"x_m":0,"y_m":0,"z_m":0,"yaw_rad":0},"indentation_m":0,)"
+          R"("force_n":0,"markers_m":[[0,0]],"probe_tip_m":[0,0,0],"probe_axis":[0,0,1],)"
+          R"("probe_radius_m":0.005,"probe_shown":true,"shaft_markers_m":[[0,0,0],[0,0,0]],)"
+          R"("shaft_marker_radius_m":0.002,"cameras":{}})")
+          .status(),
+      "markers_m[0]");
 }
 
 }  // namespace

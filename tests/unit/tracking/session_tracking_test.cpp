@@ -13,6 +13,7 @@
 #include "rig_daemon/recording/foxglove_image.h"
 #include "rig_daemon/recording/mcap_reader.h"
 #include "rig_daemon/recording/mcap_writer.h"
+#include "rig_daemon/session/codec.h"
 #include "test_data.h"
 #include "track_support.h"
 #include "sanitizer.h"
@@ -569,7 +570,9 @@ TEST_F(SimulatedPress, CliWritesSamplesAndPrintsTheJsonContract) {
     ASSERT_TRUE(w.ok()) << w.status().to_string();
     auto ch = (*w)->add_channel("/session/sync", "json", 0);
     ASSERT_TRUE(ch.ok());
-    const std::string msg = R"({"trigger_index": 0, "edge_host_ns": 1})";
+    session::SyncRecord sync;
+    sync.edge_host_ns = 1;
+    const std::string msg = session::to_json(sync);
     ASSERT_TRUE(
         (*w)->write_message(
                 *ch, 1, 1,

@@ -10,6 +10,7 @@
 #include "rig_daemon/recording/mcap_reader.h"
 #include "rig_daemon/recording/mcap_tools.h"
 #include "rig_daemon/recording/session_conventions.h"
+#include "rig_daemon/session/session_reader.h"
 #include "rig_daemon/session/topics.h"
 
 namespace hc::figures {
@@ -19,20 +20,6 @@ namespace rec = hc::recording;
 
 // rigd's step channel (rig_daemon/session/topics.h).
 using session::kStepsTopic;
-
-Status read_int(const Json& j, const char* key, int& out, const std::string& where) {
-  if (!j.contains(key) || !j[key].is_number_integer())
-    return invalid_argument(where + ": '" + key + "' must be an integer");
-  out = j[key].get<int>();
-  return {};
-}
-
-Status read_number(const Json& j, const char* key, double& out, const std::string& where) {
-  if (!j.contains(key) || !j[key].is_number() || !std::isfinite(j[key].get<double>()))
-    return invalid_argument(where + ": '" + key + "' must be a finite number");
-  out = j[key].get<double>();
-  return {};
-}
 
 std::vector<std::array<double, 3>> plan_locations(const rec::McapReader& reader) {
   std::vector<std::array<double, 3>> locs;
@@ -93,45 +80,26 @@ Result<SessionCurves> read_session_curves(const std::filesystem::path& session) 
                             " channel (not a session recorded by rigd)");
   SessionCurves curves;
   curves.locations_m = plan_locations(reader);
-  Status bad;
-  std::size_t index = 0;
-  HC_RETURN_IF_ERROR(reader.read_messages(
-      {.topics = {std::string(kStepsTopic)}, .order = rec::ReadOrder::kFile},
-      [&](const rec::MessageEvent& m) {
-        const std::string where = fmt::format("{}: {} message {}", name, kStepsTopic, index++);
-        Result<Json> j = rec::parse_json_message(m.message.data);
-        if (!j.ok()) {
-          bad = j.status().with_context(where);
-          return false;
-        }
-        if (!j->is_object()) {
-          bad = invalid_argument(where + ": not a JSON object");
-          return false;
-        }
-        if (!j->contains("location")) return true;  // a calibration or hand-held step
-        SessionStepPoint p;
-        double host = 0;
-        for (Status s : {read_int(*j, "location", p.location, where),
-                         read_int(*j, "level", p.level, where), read_int(*j, "step", p.step, where),
-                         read_number(*j, "depth_m", p.depth_m, where),
-                         read_number(*j, "force_n", p.force_n, where),
-                         read_number(*j, "host_ns", host, where)}) {
-          if (!s.ok()) {
-            bad = s;
-            return false;
-          }
-        }
-        if (p.location < 0 || p.level < 0) {
-          bad = invalid_argument(where + ": negative location or level");
-          return false;
-        }
-        if (j->contains("target_force_n") && (*j)["target_force_n"].is_number())
-          p.target_force_n = (*j)["target_force_n"].get<double>();
-        p.host_ns = (*j)["host_ns"].get<std::int64_t>();
-        curves.steps.push_back(p);
-        return true;
-      }));
-  HC_RETURN_IF_ERROR(bad);
+  HC_ASSIGN_OR_RETURN(session::SessionRecords records,
+                      session::read_session_records(reader, {.sync = false, .steps = true}, name));
+  for (std::size_t i = 0; i < records.steps.size(); ++i) {
+    const session::StepRecord& r = records.steps[i];
+    if (!r.location) continue;  // a calibration or hand-held step
+    const auto finite = [](const std::optional<double>& v) { return v && std::isfinite(*v); };
+    if (!r.level || !finite(r.depth_m) || !finite(r.force_n))
+      return invalid_argument(fmt::format("{}: {} message {}: an automated-press step needs level, "
+                                          "depth_m and force_n (finite)",
+                                          name, kStepsTopic, i));
+    SessionStepPoint p;
+    p.location = *r.location;
+    p.level = *r.level;
+    p.step = r.step;
+    p.depth_m = *r.depth_m;
+    p.force_n = *r.force_n;
+    if (finite(r.target_force_n)) p.target_force_n = *r.target_force_n;
+    p.host_ns = r.host_ns;
+    curves.steps.push_back(p);
+  }
   if (curves.steps.empty())
     return invalid_argument(name + ": no automated-press steps (a calibration or hand-held session "
                                    "has no force-displacement curves)");

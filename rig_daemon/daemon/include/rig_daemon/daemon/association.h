@@ -23,25 +23,14 @@
 
 #include "common/json.h"
 #include "rig_daemon/devices/types.h"
+#include "rig_daemon/session/session_records.h"
 
 namespace hc::rig {
 
-struct SyncRecord {
-  std::uint64_t trigger_index = 0;
-  std::int64_t edge_host_ns = 0;
-  std::map<std::string, std::uint64_t> frames;  // camera -> frame_index
-  std::vector<std::string> missing_cameras;
-  std::optional<std::uint64_t> ft_sequence;
-  std::int64_t ft_error_ns = 0;  // ft sample host_ns - edge host_ns
-  std::array<double, 3> force_n{};
-  std::optional<std::uint64_t> fsr_sequence;
-  std::int64_t fsr_error_ns = 0;
-  std::uint32_t fsr_raw = 0;
-  double fsr_force_n = 0.0;
-  bool complete = false;
+// session::SyncRecord (what /session/sync records) and the associator's own book-keeping.
+struct SyncRecord : session::SyncRecord {
   bool edge_seen = false;          // the edge itself was read (a frame may name it first)
   std::int64_t first_seen_ns = 0;  // host time of the first thing that named this edge
-  Json to_json() const;
 };
 
 struct AssociationStats {

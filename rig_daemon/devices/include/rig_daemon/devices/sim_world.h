@@ -28,6 +28,7 @@
 #include "rig_daemon/devices/sim_scene.h"
 #include "rig_daemon/devices/specimen.h"
 #include "rig_daemon/devices/types.h"
+#include "rig_daemon/session/session_records.h"
 
 namespace hc::devices::sim {
 
@@ -100,17 +101,8 @@ struct CameraTruth {
 
 // The truth behind one instant (a frame's exposure start, or any time asked for).
 //
-// On the session's /sim/ground_truth channel (hardcopy.GroundTruth json, rig_daemon/session/
-// topics.h) the fields are: host_ns, trigger_index, probe {x_m, y_m, z_m, yaw_rad},
-// indentation_m, force_n, markers_m [[x, y, z]...] (empty while a board is shown), and
-//   probe_tip_m [x, y, z]        lowest point of the tip sphere (world frame)
-//   probe_axis [x, y, z]         unit vector from the tip up the shaft
-//   probe_radius_m               tip sphere radius
-//   shaft_markers_m [[x,y,z], [x,y,z]]   the two shaft marker centres (nearer the tip first)
-//   shaft_marker_radius_m
-//   cameras {NAME: {occluded: [i...], out_of_view: [i...], board_visible: bool}}
-//   board (only while shown) {pose_index, cols, rows, square_m, R [[3x3 rows]], t_m [x, y, z]}
-//                                (x_world = R x_board + t, board frame as in sim_scene.h)
+// Recorded on the session's /sim/ground_truth channel as session::GroundTruthRecord
+// (rig_daemon/session/session_records.h; board frame as in sim_scene.h).
 struct GroundTruth {
   std::int64_t host_ns = 0;
   std::optional<std::uint64_t> trigger_index;
@@ -125,6 +117,9 @@ struct GroundTruth {
   BoardSpec board_spec;
   BoardPose board_pose;
   std::vector<CameraTruth> cameras;  // every registered camera, in registration order
+
+  // As recorded on /sim/ground_truth.
+  session::GroundTruthRecord record() const;
 };
 
 // A simulated camera as the world knows it (for occlusion truth and the session's metadata).

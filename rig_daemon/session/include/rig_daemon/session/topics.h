@@ -12,27 +12,24 @@
 //   /<arm>/state          hardcopy.ArmState (json)       sequence = sequence
 //   /<arm>/command        hardcopy.ArmCommand (json)     sequence = command sequence
 //   /session/sync         hardcopy.SyncRecord (json)     one per rising trigger edge: the frames
-//   and
-//                                                        force samples associated with it
+//                                                        and force samples associated with it
 //   /session/steps        hardcopy.Step (json)           protocol step markers
 //   /session/events       hardcopy.Event (json)          safety trips, pauses, device errors, log
 //   /sim/ground_truth     hardcopy.GroundTruth (json)    simulated rigs only: one per frame time;
-//                                                        sequence = trigger index. Fields: see
-//                                                        devices/sim_world.h GroundTruth (probe
-//                                                        tip/axis/shaft markers, per-camera
-//                                                        occluded marker indices, board pose)
+//                                                        sequence = trigger index
+// (the last four: session_records.h, written and read through codec.h and session_reader.h).
 //
 // Metadata records (names from recording/session_conventions.h): rig_config {yaml}, plan {yaml,
 // json}, specimen {...}, software {name, version}, calibration {json}, device_stats (last one
 // wins), and "session" {state, reason, association counts, safety numbers} at the end.
 //
 // Simulated rigs also get "sim_cameras" {json}: the TRUE parameters of every simulated camera of
-// the session, {NAME: {width, height, fx, fy, cx, cy, distortion [k1, k2, p1, p2, k3], R [[3x3
+// the session, {NAME: {width, height, fx, fy, cx, cy, distortion [k1, k2, p1, p2[, k3[, k4, k5, k6]]], R [[3x3
 // rows]], t_m [x, y, z], center_m [x, y, z]}} with x_cam = R x_world + t (OpenCV's model, pixel
-// centres at integer coordinates; pinhole.h), for comparing a calibration with the truth. A
-// calibration session on a simulated rig also gets "sim_board" {json}: {cols, rows, square_m,
-// margin_squares, poses: [{R, t_m}...]} (the pose sequence; frame k of the session shows pose
-// k mod N, and /sim/ground_truth names it per frame).
+// centres at integer coordinates; common/camera's camera_to_json), for comparing a calibration
+// with the truth. A calibration session on a simulated rig also gets "sim_board" {json}: {cols,
+// rows, square_m, margin_squares, poses: [{R, t_m}...]} (the pose sequence; frame k of the
+// session shows pose k mod N, and /sim/ground_truth names it per frame).
 #pragma once
 
 #include <string>
