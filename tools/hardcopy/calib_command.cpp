@@ -34,21 +34,11 @@ struct CamerasArgs {
 };
 
 Json camera_json(const CameraModel& m, const calib::CameraReport& r) {
-  Json R = Json::array();
-  for (int i = 0; i < 3; ++i) R.push_back({m.R(i, 0), m.R(i, 1), m.R(i, 2)});
-  Json j{{"rms_px", r.rms_px},
-         {"fx", m.fx},
-         {"fy", m.fy},
-         {"cx", m.cx},
-         {"cy", m.cy},
-         {"distortion", m.distortion},
-         {"R", R},
-         {"t_m", {m.t_m.x(), m.t_m.y(), m.t_m.z()}},
-         {"width", m.width},
-         {"height", m.height},
-         {"views", r.views},
-         {"points", r.points},
-         {"initial_rms_px", r.initial_rms_px}};
+  Json j = camera_to_json(m);
+  j["rms_px"] = r.rms_px;
+  j["views"] = r.views;
+  j["points"] = r.points;
+  j["initial_rms_px"] = r.initial_rms_px;
   if (!r.intrinsics_std.empty()) {
     static const char* kNames[] = {"fx", "fy", "cx", "cy", "k1", "k2", "p1", "p2", "k3"};
     Json s = Json::object();
