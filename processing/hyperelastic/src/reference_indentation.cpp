@@ -52,8 +52,9 @@ Result<IndentationResult> reference_indentation(const NeoHookeanModel& model,
   std::unique_ptr<fem::Probe> start = probe.clone();
   start->advance(out.contact_travel_m);
   HC_ASSIGN_OR_RETURN(std::unique_ptr<RigidProbe> contact,
-                      make_fem_surface_contact(*start, surface,
-                                               surface.penalty_stiffness(linear, options.penalty_scale)));
+                      make_fem_surface_contact(
+                          *start, surface, surface.penalty_stiffness(linear, options.penalty_scale),
+                          options.penalty_scale));
   Boundary boundary;
   boundary.fixed_nodes = fixed_nodes;  // indent() adds the probe's contact itself
   IndentOptions io;
