@@ -30,6 +30,19 @@ class FemRigidProbe : public RigidProbe {
  protected:
   std::unique_ptr<fem::Probe> probe_;
 
+  // correct_step() for one node: inside at x and, by the linear model, still inside at x_try,
+  // moved along the normal at x_try to the penetration the model predicts.
+  void correct_node(const Eigen::VectorXd& x, int node, Eigen::VectorXd* x_try) const {
+    const Eigen::Index at = 3 * static_cast<Eigen::Index>(node);
+    Eigen::Vector3d n;
+    const double s = probe_->signed_distance(x.segment<3>(at), &n);
+    if (!(s < 0)) return;
+    const double predicted = s + n.dot(x_try->segment<3>(at) - x.segment<3>(at));
+    if (!(predicted < 0)) return;  // the model lets it leave the probe
+    const double now = probe_->signed_distance(x_try->segment<3>(at), &n);
+    x_try->segment<3>(at) -= (now - predicted) * n;
+  }
+
   // The Hessian of the penalty k/2 s² at a point at x (signed distance s < 0, outward normal n):
   // k (n nᵀ + s ∇n). The second part is the curvature of the probe's surface, ∇n = (I − n nᵀ)/ρ
   // on a sphere (ρ: distance from its centre). Without it Newton converges only linearly once the
@@ -70,6 +83,9 @@ class FemProbeContact final : public FemRigidProbe {
     if (grad != nullptr) *grad += k_ * s * n;
     if (hess != nullptr) *hess += point_hessian(p, n, s, k_, false);
     return 0.5 * k_ * s * s;
+  }
+  void correct_step(const Eigen::VectorXd& x, Eigen::VectorXd* x_try) const override {
+    for (Eigen::Index i = 0; i < x.size() / 3; ++i) correct_node(x, static_cast<int>(i), x_try);
   }
 
  private:
@@ -115,6 +131,14 @@ class FemSurfaceContact final : public FemRigidProbe {
       }
     }
     return e;
+  }
+
+  // Node points only: a correction of a point on a face would have to be shared among its nodes,
+  // and several points share a face; those are left to Newton.
+  void correct_step(const Eigen::VectorXd& x, Eigen::VectorXd* x_try) const override {
+    const std::vector<fem::ContactPoint>& points = surface_.points();
+    for (std::size_t i = 0; i < points.size(); ++i)
+      if (points[i].is_node() && k_[i] > 0) correct_node(x, points[i].nodes[0], x_try);
   }
 
  private:

@@ -216,6 +216,9 @@ double ContactPotential::node_energy(const Eigen::Vector3d&, Eigen::Vector3d*,
   return 0;
 }
 
+void ContactPotential::correct_step(const Eigen::VectorXd& /*x*/,
+                                    Eigen::VectorXd* /*x_try*/) const {}
+
 double ContactPotential::energy(const Eigen::VectorXd& x, Eigen::VectorXd* grad,
                                 std::vector<Eigen::Triplet<double>>* hessian, bool project) const {
   double e = 0;

@@ -28,7 +28,8 @@ Result<std::unique_ptr<RigidProbe>> make_fem_probe_contact(const fem::Probe& pro
 // point's weights; Hessian k_p (w wᵀ ⊗ (n nᵀ + s ∇n)), ∇n as above. With penalty_scale > 0 (the
 // stiffnesses are that times the block's own, ContactSurface::penalty_stiffness) the curvature
 // part is left out where |s| > ρ / penalty_scale, far from equilibrium, where it would make the
-// Hessian indefinite. Fails when `stiffness` does not have one entry per point, an entry is
+// Hessian indefinite. Its correct_step() restores the penetration of the node points in contact
+// (ContactPotential). Fails when `stiffness` does not have one entry per point, an entry is
 // negative or not finite, or penalty_scale is negative or not finite.
 Result<std::unique_ptr<RigidProbe>> make_fem_surface_contact(const fem::Probe& probe,
                                                              const fem::ContactSurface& surface,

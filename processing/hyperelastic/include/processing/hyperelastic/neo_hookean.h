@@ -87,6 +87,14 @@ class ContactPotential {
   // (points on boundary triangles, fem_probe.h) override it.
   virtual double energy(const Eigen::VectorXd& x, Eigen::VectorXd* grad,
                         std::vector<Eigen::Triplet<double>>* hessian, bool project) const;
+  // The second-order correction of a Newton step from x to the trial positions *x_try: moves each
+  // contact point that is inside the obstacle at x, and that the step's linear model keeps inside,
+  // to the penetration that model predicts (s(x) + ∇s(x)·Δ), along the obstacle's normal at
+  // x_try. On a curved obstacle a step along the tangent plane lifts a point off by about
+  // Δ²/(2ρ), far more than the penetration F/k of a stiff penalty: the next step sees the point
+  // free and pulls it deep inside again, and the line search cuts that step to nearly nothing (the
+  // Maratos effect). The default does nothing.
+  virtual void correct_step(const Eigen::VectorXd& x, Eigen::VectorXd* x_try) const;
 };
 
 // A rigid probe moving along a unit `direction` (its axis) from a start pose; `depth_m` is how far
