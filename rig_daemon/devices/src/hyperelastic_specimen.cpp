@@ -5,7 +5,10 @@
 #include <cmath>
 
 #include "common/log.h"
+#include "processing/fem/contact.h"
+#include "processing/fem/probe.h"
 #include "processing/hyperelastic/neo_hookean.h"
+#include "processing/hyperelastic/reference_indentation.h"
 #include "processing/meshing/tetrahedralize.h"
 
 namespace hc::devices::sim {
@@ -30,11 +33,13 @@ Status HyperelasticSpecimenOptions::validate() const {
   const double nx = size_m.x() / marker_spacing_m, ny = size_m.y() / marker_spacing_m;
   if (std::abs(nx - std::round(nx)) > 1e-6 || std::abs(ny - std::round(ny)) > 1e-6)
     return invalid_argument("hyperelastic specimen: size_m must be a multiple of marker_spacing_m");
+  // contact_stiffness_n_per_m is deprecated and ignored (any value is accepted): the contact is
+  // the reference indentation's, its stiffness set by the FEM's rule.
   if (layers < 1 || depth_steps < 1 || !(max_depth_m > 0) || !(probe_radius_m > 0) ||
-      !(location_grid_m > 0) || !(contact_stiffness_n_per_m > 0))
+      !(location_grid_m > 0))
     return invalid_argument(
         "hyperelastic specimen: layers, depth_steps, max_depth_m, "
-        "probe_radius_m, location_grid_m, contact stiffness must be > 0");
+        "probe_radius_m, location_grid_m must be > 0");
   double total = 0;
   const double cell = height_m / layers;
   for (std::size_t i = 0; i < material_layers.size(); ++i) {
@@ -56,18 +61,20 @@ Status HyperelasticSpecimenOptions::validate() const {
 }
 
 struct HyperelasticSpecimen::Curve {
-  std::vector<double> depth_m;                        // 0, d1, ..., dK
-  std::vector<double> force_n;                        // at each depth
+  std::vector<double> depth_m;  // 0, [travel to first contact,] travel + d1, ..., travel + dK
+  std::vector<double> force_n;  // at each depth
   std::vector<std::vector<Eigen::Vector3d>> markers;  // top nodes (world) at each depth
   bool converged = true;
+  int depth_steps = 0;  // load steps solved (for the log)
+  int newton_iterations = 0;
 };
 
 class HyperelasticSpecimen::Impl {
  public:
   hy::NeoHookeanModel model;
-  hy::Boundary boundary;
-  std::vector<int> top_nodes;  // in marker order
-  Eigen::Vector3d offset;      // mesh → world translation
+  std::vector<int> fixed_nodes;  // the bottom face
+  std::vector<int> top_nodes;    // in marker order
+  Eigen::Vector3d offset;        // mesh → world translation
   mutable std::mutex mutex;
   mutable std::map<std::pair<long, long>, std::unique_ptr<Curve>> curves;
   explicit Impl(hy::NeoHookeanModel m) : model(std::move(m)) {}
@@ -110,8 +117,7 @@ Result<std::shared_ptr<HyperelasticSpecimen>> HyperelasticSpecimen::create(
   impl.offset = Eigen::Vector3d(options.center_m.x() - 0.5 * options.size_m.x(),
                                 options.center_m.y() - 0.5 * options.size_m.y(),
                                 options.top_z_m - options.height_m);
-  impl.boundary.fixed_nodes =
-      hc::meshing::nodes_with_marker(impl.model.mesh(), hc::meshing::kMarkerBottom);
+  impl.fixed_nodes = hc::meshing::nodes_with_marker(impl.model.mesh(), hc::meshing::kMarkerBottom);
   std::vector<int> top = hc::meshing::nodes_with_marker(impl.model.mesh(), hc::meshing::kMarkerTop);
   // Marker order: by y then x, like marker_grid().
   const auto& nodes = impl.model.mesh().nodes;
@@ -134,70 +140,65 @@ const HyperelasticSpecimen::Curve* HyperelasticSpecimen::curve_at(double x_m, do
   std::lock_guard lock(impl_->mutex);
   auto it = impl_->curves.find({ix, iy});
   if (it != impl_->curves.end()) return it->second.get();
-  // Solve this location: the sphere starts touching the top surface at the grid point.
   auto curve = std::make_unique<Curve>();
-  hy::ProbeOptions po;
-  po.radius_m = options_.probe_radius_m;
-  po.stiffness_n_per_m = options_.contact_stiffness_n_per_m;
-  po.start_position_m =
-      Eigen::Vector3d(ix * options_.location_grid_m, iy * options_.location_grid_m,
-                      options_.top_z_m + options_.probe_radius_m) -
-      impl_->offset;
-  std::unique_ptr<hy::RigidProbe> probe = hy::make_sphere_probe(po);
-  hy::Boundary boundary = impl_->boundary;
-  boundary.contacts = {probe.get()};
-  Eigen::VectorXd x = impl_->model.rest_positions();
-  auto record = [&](double depth, double force) {
+  const auto start = std::chrono::steady_clock::now();
+  const Status st =
+      solve_curve(ix * options_.location_grid_m, iy * options_.location_grid_m, curve.get());
+  log::get("sim")->info(
+      "hyperelastic specimen: location ({:.1f}, {:.1f}) mm solved in {:.2f} s ({} depth steps, {} "
+      "Newton iterations){}{}",
+      1e3 * ix * options_.location_grid_m, 1e3 * iy * options_.location_grid_m,
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count(),
+      curve->depth_steps, curve->newton_iterations,
+      curve->converged ? "" : ", not converged: ", st.message());
+  const Curve* out = curve.get();
+  impl_->curves.emplace(std::make_pair(ix, iy), std::move(curve));
+  return out;
+}
+
+Status HyperelasticSpecimen::solve_curve(double x_m, double y_m, Curve* curve) const {
+  // Every curve starts unloaded at the rest shape; a failure leaves the steps that finished.
+  auto record = [&](double depth, double force, const MatrixX3d& positions) {
     curve->depth_m.push_back(depth);
     curve->force_n.push_back(force);
     std::vector<Eigen::Vector3d> m;
     m.reserve(impl_->top_nodes.size());
-    for (int n : impl_->top_nodes) m.push_back(x.segment<3>(3 * n) + impl_->offset);
+    for (int n : impl_->top_nodes) m.push_back(positions.row(n).transpose() + impl_->offset);
     curve->markers.push_back(std::move(m));
   };
-  record(0.0, 0.0);
-  const auto start = std::chrono::steady_clock::now();
-  int newton_iterations = 0;
-  Eigen::VectorXd x_previous = x;  // the equilibrium one depth step up
-  for (int k = 1; k <= options_.depth_steps; ++k) {
-    hy::IndentOptions io;
-    io.steps = 1;
-    io.depth_m = options_.max_depth_m * k / options_.depth_steps;
-    // Forces to 1e-6 of the load scale (the simulated F/T sensor's noise is far above that).
-    io.solve.relative_gradient_tolerance = 1e-6;
-    hy::IndentSummary summary;
-    // Newton starts from the last two equilibria extrapolated linearly in depth (the steps are
-    // equal): with the tolerance above, 60 -> 34 iterations for a demo block's 8 steps. Where that
-    // start inverts an element or does not converge, from the last equilibrium alone.
-    const Eigen::VectorXd x_last = x;
-    Status st;
-    if (k >= 2) {
-      x = 2.0 * x_last - x_previous;
-      st = hy::indent(impl_->model, boundary, *probe, io, &x, &summary);
-    }
-    if (k < 2 || !st.ok() || !summary.usable) {
-      for (const hy::IndentStep& step : summary.steps) newton_iterations += step.newton_iterations;
-      x = x_last;
-      summary = {};
-      st = hy::indent(impl_->model, boundary, *probe, io, &x, &summary);
-    }
-    x_previous = x_last;
-    if (!st.ok() || !summary.usable) {
-      curve->converged = false;
-      break;
-    }
-    for (const hy::IndentStep& step : summary.steps) newton_iterations += step.newton_iterations;
-    record(io.depth_m, summary.force_n);
+  const TetMesh& mesh = impl_->model.mesh();
+  record(0.0, 0.0, mesh.nodes);
+  curve->converged = false;
+  // The sphere touching the undeformed top surface's plane at the grid point (mesh frame), moving
+  // down: the reference indentation (and with it `simulate` and `synth`) measures depth from its
+  // first contact with the specimen's contact points, which is this pose on the node grid.
+  Result<std::unique_ptr<fem::Probe>> probe = fem::make_sphere_probe(
+      options_.probe_radius_m,
+      Eigen::Vector3d(x_m, y_m, options_.top_z_m + options_.probe_radius_m) - impl_->offset,
+      -Eigen::Vector3d::UnitZ());
+  if (!probe.ok()) return probe.status();
+  hy::ReferenceIndentationOptions ro;
+  ro.steps = options_.depth_steps;
+  ro.record_steps = true;
+  // Forces to 1e-6 of the load scale (the simulated F/T sensor's noise is far above that).
+  ro.solve.relative_gradient_tolerance = 1e-6;
+  const Result<hy::IndentationResult> r =
+      hy::reference_indentation(impl_->model, impl_->fixed_nodes, **probe,
+                                fem::Load{fem::LoadControl::kDepth, options_.max_depth_m}, ro);
+  if (!r.ok()) return r.status();
+  // World depth (top plane to the probe's lowest point) = travel to first contact + indentation
+  // depth. Off the node grid the sphere first sinks between the nodes without force.
+  const double travel = r->contact_travel_m;
+  if (travel > 0) record(travel, 0.0, mesh.nodes);
+  const std::vector<hy::IndentStep>& steps = r->summary.steps;
+  for (std::size_t k = 0; k < steps.size() && k < r->step_positions_m.size(); ++k) {
+    ++curve->depth_steps;
+    curve->newton_iterations += steps[k].newton_iterations;
+    record(travel + steps[k].depth_m, steps[k].force_n, r->step_positions_m[k]);
   }
-  log::get("sim")->info(
-      "hyperelastic specimen: location ({:.1f}, {:.1f}) mm solved in {:.2f} s ({} depth steps, {} "
-      "Newton iterations){}",
-      1e3 * ix * options_.location_grid_m, 1e3 * iy * options_.location_grid_m,
-      std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count(),
-      curve->depth_m.size() - 1, newton_iterations, curve->converged ? "" : ", not converged");
-  const Curve* out = curve.get();
-  impl_->curves.emplace(std::make_pair(ix, iy), std::move(curve));
-  return out;
+  if (!r->summary.usable) return failed_precondition(r->summary.message);
+  curve->converged = true;
+  return {};
 }
 
 namespace {

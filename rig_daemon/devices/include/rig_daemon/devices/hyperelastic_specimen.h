@@ -2,12 +2,14 @@
 // (processing/hyperelastic, the reference model, which differs from the fitter's co-rotational
 // data-driven model), fixed at its bottom and indented from above by the rigid spherical probe.
 //
-// Each probe location is solved once, lazily, in depth steps up to max_depth_m (Newton equilibrium
-// per step, warm-started); force and marker positions are interpolated linearly in depth between
-// the steps. Locations snap to a grid of `location_grid_m` (the probe centre is within half a grid
-// cell of where it is); the first query at a new location blocks while it is solved (about a
-// second on a coarse mesh), so plans should revisit a few locations. Markers are the top-surface
-// nodes of a structured mesh whose top grid spacing is the marker spacing (3 mm, thesis 5.6).
+// Each probe location is solved once, lazily, by hyperelastic::reference_indentation (the one
+// "indent the reference block" that `hardcopy simulate`, `synth` and the tests use, with the
+// co-rotational FEM's contact rule) in depth steps up to max_depth_m; force and marker positions
+// are interpolated linearly in depth between the steps. Locations snap to a grid of
+// `location_grid_m` (the probe centre is within half a grid cell of where it is); the first query
+// at a new location blocks while it is solved (about a second on a coarse mesh), so plans should
+// revisit a few locations. Markers are the top-surface nodes of a structured mesh whose top grid
+// spacing is the marker spacing (3 mm, thesis 5.6).
 #pragma once
 
 #include <map>
@@ -47,6 +49,8 @@ struct HyperelasticSpecimenOptions {
   double max_depth_m = 0.006;
   int depth_steps = 12;
   double location_grid_m = 0.003;
+  // Deprecated, ignored (kept so that code setting it still builds): the contact penalty is the
+  // reference indentation's, penalty_scale times the small-strain stiffness at the contact nodes.
   double contact_stiffness_n_per_m = 1e5;
   // Bottom first; their thicknesses add up to height_m and each is a whole number of the mesh's
   // cells through the height (height_m / layers). Empty: one material (the three keys above).
@@ -77,7 +81,11 @@ class HyperelasticSpecimen final : public Specimen {
   struct Curve;  // one location: depths, forces, marker positions per step
   class Impl;
   HyperelasticSpecimen() = default;
+  // The curve at a grid location (solved on first use, under the lock).
   const Curve* curve_at(double x_m, double y_m) const;
+  // Indents the block at (x_m, y_m) (world) with hyperelastic::reference_indentation into *curve;
+  // the error when a step found no equilibrium (curve->converged false, the finished steps kept).
+  Status solve_curve(double x_m, double y_m, Curve* curve) const;
 
   HyperelasticSpecimenOptions options_;
   std::vector<Eigen::Vector3d> markers_;
