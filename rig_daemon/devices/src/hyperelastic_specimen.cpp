@@ -33,8 +33,6 @@ Status HyperelasticSpecimenOptions::validate() const {
   const double nx = size_m.x() / marker_spacing_m, ny = size_m.y() / marker_spacing_m;
   if (std::abs(nx - std::round(nx)) > 1e-6 || std::abs(ny - std::round(ny)) > 1e-6)
     return invalid_argument("hyperelastic specimen: size_m must be a multiple of marker_spacing_m");
-  // contact_stiffness_n_per_m is deprecated and ignored (any value is accepted): the contact is
-  // the reference indentation's, its stiffness set by the FEM's rule.
   if (layers < 1 || depth_steps < 1 || !(max_depth_m > 0) || !(probe_radius_m > 0) ||
       !(location_grid_m > 0))
     return invalid_argument(

@@ -49,9 +49,6 @@ struct HyperelasticSpecimenOptions {
   double max_depth_m = 0.006;
   int depth_steps = 12;
   double location_grid_m = 0.003;
-  // Deprecated, ignored (kept so that code setting it still builds): the contact penalty is the
-  // reference indentation's, penalty_scale times the small-strain stiffness at the contact nodes.
-  double contact_stiffness_n_per_m = 1e5;
   // Bottom first; their thicknesses add up to height_m and each is a whole number of the mesh's
   // cells through the height (height_m / layers). Empty: one material (the three keys above).
   std::vector<MaterialLayer> material_layers;
