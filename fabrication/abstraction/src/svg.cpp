@@ -5,6 +5,7 @@
 #include <expat.h>
 #include <fmt/format.h>
 
+#include <algorithm>
 #include <cctype>
 #include <charconv>
 #include <cmath>
@@ -150,19 +151,30 @@ Result<Affine> parse_transform(std::string_view text) {
 
 // Flattening: a curve whose second derivative is at most `curvature` (in length per unit
 // parameter squared) deviates from its n-piece chord polyline by at most curvature / (8 n^2).
+// NaN (non-finite coordinates or a degenerate transform, which validate() rejects) gives one piece.
 int pieces(double curvature, double flatness) {
   const double n = std::ceil(std::sqrt(curvature / (8.0 * flatness)));
-  return static_cast<int>(std::clamp(n, 1.0, 10000.0));
+  if (!(n >= 1.0)) return 1;
+  return static_cast<int>(std::min(n, 10000.0));
 }
+
+// The most points a document may flatten to (160 MB): beyond it the reader stops with an error
+// instead of exhausting memory on a few kilobytes of curves with a tiny flatness.
+constexpr std::size_t kMaxPoints = 10'000'000;
 
 struct PathBuilder {
   const Affine* m = nullptr;
   double flatness = 0.01;  // in user units
   Polygon2* out = nullptr;
+  std::size_t* points = nullptr;  // flattened so far, over the whole document
   Loop2 loop;
   void add(const Eigen::Vector2d& p) {
+    if (*points >= kMaxPoints) return;  // parse_svg reports it
     const Eigen::Vector2d q = apply(*m, p);
-    if (loop.empty() || loop.back() != q) loop.push_back(q);
+    if (loop.empty() || loop.back() != q) {
+      loop.push_back(q);
+      ++*points;
+    }
   }
   void close() {
     while (loop.size() > 1 && loop.back() == loop.front()) loop.pop_back();
@@ -363,6 +375,7 @@ struct Parser {
   XML_Parser xml = nullptr;
   std::vector<Affine> stack;
   Polygon2 out;
+  std::size_t points = 0;
   Status error;
   bool root_seen = false;
 
@@ -405,7 +418,7 @@ struct Parser {
     }
     stack.push_back(m);
     const double scale = std::sqrt(std::abs(m.leftCols<2>().determinant()));
-    PathBuilder b{&stack.back(), options.flatness_mm / std::max(scale, 1e-300), &out, {}};
+    PathBuilder b{&stack.back(), options.flatness_mm / std::max(scale, 1e-300), &out, &points, {}};
     const auto num = [&](std::string_view key, double fallback) -> Result<double> {
       const char* v = attr(atts, key);
       if (!v) return fallback;
@@ -498,6 +511,11 @@ Result<Polygon2> parse_svg(std::string_view text, std::string_view name,
   const auto line = XML_GetCurrentLineNumber(p.xml);
   XML_ParserFree(p.xml);
   if (!p.error.ok()) return p.error.with_context(name);
+  if (p.points >= kMaxPoints) {
+    return invalid_argument(fmt::format(
+        "{}: the outline flattens to more than {} points; raise the flatness (now {} mm)", name,
+        kMaxPoints, options.flatness_mm));
+  }
   if (!ok)
     return invalid_argument(fmt::format("{}: line {}: malformed XML: {}", name, line, xml_error));
   if (!p.root_seen) return invalid_argument(fmt::format("{}: not an SVG document", name));

@@ -75,6 +75,10 @@ TEST(Svg, MalformedInputNamesTheProblem) {
       {"<html><body/></html>", "expected <svg>"},
       {doc("", R"svg(width="10furlong" viewBox="0 0 1 1")svg"), "unit"},
       {doc(R"svg(<path d="M0 0 L1 0 L2 0 z"/>)svg"), "no closed path"},
+      // Relative moves that overflow to infinity, then a curve through them (its flattening saw
+      // NaN: a fuzzer's find).
+      {doc(R"svg(<path d="M0 0 l1e308 0 l1e308 0 c1 1 2 2 3 3 z"/>)svg"), "not finite"},
+      {doc(R"svg(<path d="M0 0 h1 v1 z" transform="scale(1e200) scale(1e200)"/>)svg"), "not finite"},
   };
   for (const auto& [text, expected] : cases) {
     auto p = parse_svg(text, "bad.svg");
@@ -82,6 +86,22 @@ TEST(Svg, MalformedInputNamesTheProblem) {
     EXPECT_NE(p.status().message().find(expected), std::string::npos) << p.status().message();
     EXPECT_NE(p.status().message().find("bad.svg"), std::string::npos) << p.status().message();
   }
+}
+
+TEST(Svg, AnOutlineTooFineToHoldIsAClearError) {
+  // 1,100 cubic curves at a flatness of 1e-9 mm would flatten to 11 million points (10,000 per
+  // curve, the cap): the reader stops at 10 million and names the option to raise.
+  std::string d = "M0 0";
+  for (int i = 0; i < 1100; ++i) d += " c0 50 100 50 100 0";
+  d += " z";
+  SvgReadOptions options;
+  options.flatness_mm = 1e-9;
+  auto p = parse_svg(doc("<path d=\"" + d + "\"/>"), "fine.svg", options);
+  ASSERT_FALSE(p.ok());
+  EXPECT_NE(p.status().message().find("raise the flatness"), std::string::npos)
+      << p.status().message();
+  // The same document at the default flatness reads.
+  EXPECT_TRUE(parse_svg(doc("<path d=\"" + d + "\"/>"), "fine.svg").ok());
 }
 
 TEST(Svg, WriteIsAtomicAndReadable) {
