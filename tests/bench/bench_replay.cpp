@@ -20,7 +20,7 @@
 #include "rig_daemon/daemon/daemon.h"
 #include "rig_daemon/devices/force_torque.h"
 #include "rig_daemon/devices/registry.h"
-#include "rig_daemon/devices/replay.h"
+#include "rig_daemon/replay/replay.h"
 
 namespace {
 
@@ -82,12 +82,11 @@ void BM_ReplayForceChannel(benchmark::State& state) {
       return;
     }
     hc::devices::BackendRegistry registry;
-    (void)hc::devices::register_replay_backends(registry);
+    (void)hc::devices::register_replay_backends(registry, *session);
     hc::devices::DeviceContext ctx;
     ctx.name = "ft";
     ctx.backend = "replay";
     ctx.clock = clock;
-    ctx.replay = *session;
     auto ft = registry.create<hc::devices::ForceTorque>(ctx);
     if (!ft.ok() || !hc::devices::configure_from_yaml(**ft, "").ok() || !(*ft)->activate().ok()) {
       state.SkipWithError("replay F/T would not start");

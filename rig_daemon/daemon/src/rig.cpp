@@ -3,6 +3,7 @@
 #include <optional>
 
 #include "rig_daemon/backends/hardware_backends.h"
+#include "rig_daemon/simulation/sim_backends.h"
 
 namespace hc::rig {
 
@@ -15,10 +16,10 @@ Result<std::unique_ptr<Rig>> Rig::create(Options options) {
   std::unique_ptr<Rig> rig(new Rig());
   rig->config_ = std::move(options.config);
   rig->clock_ = options.clock ? options.clock : devices::monotonic_clock();
-  HC_RETURN_IF_ERROR(devices::register_device_backends(rig->registry_));
   HC_RETURN_IF_ERROR(register_hardware_backends(rig->registry_));
   if (options.replay) {
     rig->replay_ = options.replay;
+    HC_RETURN_IF_ERROR(devices::register_replay_backends(rig->registry_, rig->replay_));
     rig->config_.devices.clear();
     for (const devices::ReplaySession::Stream& s : rig->replay_->streams()) {
       if (rig->config_.find(s.device) != nullptr) continue;  // one device per name
@@ -26,7 +27,6 @@ Result<std::unique_ptr<Rig>> Rig::create(Options options) {
       ctx.name = s.device;
       ctx.backend = "replay";
       ctx.clock = rig->clock_;
-      ctx.replay = rig->replay_;
       HC_ASSIGN_OR_RETURN(std::unique_ptr<devices::Device> d, rig->registry_.create(s.kind, ctx));
       HC_RETURN_IF_ERROR(devices::configure_from_yaml(*d, "", "replay of " + s.device));
       rig->config_.devices.push_back(DeviceConfig{s.device, s.kind, "replay"});
@@ -50,9 +50,15 @@ Result<std::unique_ptr<Rig>> Rig::create(Options options) {
     world_options.seed = rig->config_.seed;
     if (std::optional<ConfigNode> w = root.find("world")) w->get(world_options);
     if (!root.status().ok()) return root.status();
+    // The simulated world exists when a device is simulated; the "sim" backends and the firmware
+    // board's simulated ADC get it at registration, the devices never see it.
+    devices::SimulatedBoardInput board;
     if (any_sim) {
       rig->world_ = std::make_shared<devices::sim::World>(world_options, rig->clock_);
+      HC_RETURN_IF_ERROR(devices::register_sim_backends(rig->registry_, rig->world_));
+      board = devices::sim::board_input(rig->world_);
     }
+    HC_RETURN_IF_ERROR(devices::register_firmware_backends(rig->registry_, std::move(board)));
     std::optional<ConfigNode> devs = root.find("devices");
     if (!devs) return root.status();
     auto entries = devs->entries();
@@ -64,7 +70,6 @@ Result<std::unique_ptr<Rig>> Rig::create(Options options) {
       ctx.name = name;
       ctx.backend = cfg->backend;
       ctx.clock = rig->clock_;
-      ctx.world = rig->world_;
       Result<std::unique_ptr<devices::Device>> made = rig->registry_.create(cfg->kind, ctx);
       if (!made.ok()) {
         node.error("backend", made.status().message());

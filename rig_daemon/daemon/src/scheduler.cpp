@@ -134,8 +134,7 @@ Json Session::Impl::finish(Status run_status) {
   if (trigger != nullptr && trigger->state() == dev::DeviceState::kActive) (void)trigger->stop();
   for (dev::Device* d : used)
     if (d != trigger) (void)d->deactivate();
-  if (have_truth) rig.world()->set_ground_truth_callback(nullptr);
-  if (board_show) rig.world()->hide_board();
+  if (source) source->stop();
 
   SessionState final_state = SessionState::kFinished;
   std::string reason = "completed";
@@ -206,7 +205,7 @@ Result<Json> Session::run() {
   m.total = m.opts.plan.expected_triggers();
   if (Status s = m.setup(); !s.ok()) {
     for (dev::Device* d : m.used) (void)d->deactivate();
-    if (m.have_truth && m.rig.world()) m.rig.world()->set_ground_truth_callback(nullptr);
+    if (m.source) m.source->stop();
     if (m.recorder) {
       m.record_event("error", s.message());
       (void)m.recorder->close();

@@ -254,14 +254,11 @@ Status Session::Impl::run_automated() {
 }
 
 Status Session::Impl::run_calibration() {
-  // One trigger pulse per board pose; between pulses the board moves (simulated rigs: the world
-  // shows the pose the frame's trigger index selects) or a technician moves it (dwell_s).
+  // One trigger pulse per board pose; between pulses the board moves (simulated rigs: the
+  // session source shows the pose the frame's trigger index selects) or a technician moves it
+  // (dwell_s).
   const CalibrationPlan& p = opts.plan.calibration;
-  if (board_show) {
-    board_show->first_trigger_index = rig.world()->pulses_by(clock().now_ns());
-    board_show->start_ns = clock().now_ns();
-    rig.world()->show_board(*board_show);
-  }
+  if (source) source->begin_calibration(clock().now_ns());
   for (int k = 0; k < p.poses; ++k) {
     HC_RETURN_IF_ERROR(pause_point());
     {

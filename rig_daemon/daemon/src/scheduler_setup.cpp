@@ -6,7 +6,6 @@
 #include <set>
 #include <sstream>
 
-#include "rig_daemon/devices/sim_scene.h"
 #include "rig_daemon/recording/foxglove_image.h"
 #include "rig_daemon/recording/session_conventions.h"
 #include "rig_daemon/session/codec.h"
@@ -128,14 +127,8 @@ Status Session::Impl::open_recording() {
                                                     session::step_record_schema(), session_meta));
   HC_ASSIGN_OR_RETURN(ch_events, add_session_channel(session::kEventsTopic,
                                                      session::event_record_schema(), session_meta));
-  have_truth = rig.world() != nullptr;
-  if (have_truth) {
-    HC_ASSIGN_OR_RETURN(
-        ch_truth,
-        add_session_channel(
-            session::kGroundTruthTopic, session::ground_truth_schema(),
-            rec::StringMap{{"device", "world"}, {"kind", "ground_truth"}, {"backend", "sim"}}));
-  }
+  source = rig.make_session_source();
+  if (source) HC_RETURN_IF_ERROR(source->add_channels(*recorder));
   return {};
 }
 
@@ -148,7 +141,7 @@ Status Session::Impl::write_opening_metadata() {
   HC_RETURN_IF_ERROR(recorder->write_metadata_now(
       rec::kMetadataPlan, {{"yaml", plan.source_text}, {"json", plan.to_json().dump()}}));
   rec::StringMap specimen(plan.specimen.begin(), plan.specimen.end());
-  if (rig.world() != nullptr) specimen["simulated_specimen"] = rig.world()->specimen().name();
+  if (source) source->describe_specimen(specimen);
   HC_RETURN_IF_ERROR(recorder->write_metadata_now(rec::kMetadataSpecimen, specimen));
   HC_RETURN_IF_ERROR(recorder->write_metadata_now(
       rec::kMetadataSoftware, {{"name", "hardcopy rigd"}, {"version", opts.software_version}}));
@@ -172,42 +165,7 @@ Status Session::Impl::write_opening_metadata() {
   }
   HC_RETURN_IF_ERROR(
       recorder->write_metadata_now(rec::kMetadataCalibration, {{"json", calib.dump()}}));
-  if (rig.world() != nullptr) {
-    // The true parameters of the session's simulated cameras (rig_daemon/session/topics.h).
-    Json sim_cams = Json::object();
-    for (const dev::sim::CameraRecord& r : rig.world()->cameras()) {
-      if (!session_cameras.count(r.name)) continue;
-      sim_cams[r.name] = camera_to_json(r.camera);
-    }
-    HC_RETURN_IF_ERROR(
-        recorder->write_metadata_now(session::kMetadataSimCameras, {{"json", sim_cams.dump()}}));
-    if (plan.protocol == Protocol::kCalibration) {
-      const CalibrationPlan& p = plan.calibration;
-      dev::sim::BoardShow show;
-      show.spec.cols = p.board_cols;
-      show.spec.rows = p.board_rows;
-      show.spec.square_m = p.square_m;
-      show.spec.margin_squares = p.margin_squares;
-      dev::sim::BoardMotion motion;
-      motion.poses = p.poses;
-      motion.seed = p.seed;
-      motion.max_tilt_deg = p.max_tilt_deg;
-      const dev::sim::Specimen& spec = rig.world()->specimen();
-      const Eigen::Vector2d c = spec.footprint().center();
-      show.poses =
-          dev::sim::board_poses(show.spec, motion, Eigen::Vector3d(c.x(), c.y(), spec.top_z_m()));
-      show.dwell_ns = std::max<std::int64_t>(1, std::llround(p.dwell_s * 1e9));
-      Json poses = Json::array();
-      for (const dev::sim::BoardPose& b : show.poses)
-        poses.push_back({{"R", eigen_to_json(b.R)}, {"t_m", eigen_to_json(b.t)}});
-      const Json board{{"cols", p.board_cols},   {"rows", p.board_rows},
-                       {"square_m", p.square_m}, {"margin_squares", p.margin_squares},
-                       {"seed", p.seed},         {"poses", std::move(poses)}};
-      HC_RETURN_IF_ERROR(
-          recorder->write_metadata_now(session::kMetadataSimBoard, {{"json", board.dump()}}));
-      board_show = std::move(show);
-    }
-  }
+  if (source) HC_RETURN_IF_ERROR(source->write_metadata(plan, session_cameras));
   return {};
 }
 
@@ -217,15 +175,7 @@ Status Session::Impl::setup() {
   HC_RETURN_IF_ERROR(write_opening_metadata());
   recorder->start();
 
-  if (have_truth) {
-    rig.world()->set_ground_truth_callback([this](const dev::sim::GroundTruth& t) {
-      session::GroundTruthRecord r = t.record();
-      std::erase_if(r.cameras, [&](const auto& c) { return !session_cameras.count(c.first); });
-      recorder->write(ch_truth, t.host_ns, t.host_ns,
-                      static_cast<std::uint32_t>(t.trigger_index.value_or(0)),
-                      to_bytes(session::to_json(r)));
-    });
-  }
+  if (source) source->start();
 
   // Start the devices (a device left in error by an earlier session is reset first).
   // The trigger stays active from its first session on: its edge indices then count from the

@@ -19,8 +19,8 @@
 #include <vector>
 
 #include "rig_daemon/daemon/scheduler.h"
-#include "rig_daemon/devices/sim_scene.h"
 #include "rig_daemon/recording/mcap_records.h"
+#include "rig_daemon/daemon/session_source.h"
 
 namespace hc::rig {
 
@@ -89,10 +89,10 @@ struct Session::Impl {
   // Channels.
   std::uint16_t ch_edges = 0, ch_ft = 0, ch_fsr = 0, ch_arm_state = 0, ch_arm_cmd = 0;
   std::vector<std::uint16_t> ch_cams;
-  std::uint16_t ch_sync = 0, ch_steps = 0, ch_events = 0, ch_truth = 0;
-  bool have_truth = false;
-  std::optional<dev::sim::BoardShow> board_show;  // calibration on a simulated rig
-  std::set<std::string> session_cameras;          // names, for the per-camera truth
+  std::uint16_t ch_sync = 0, ch_steps = 0, ch_events = 0;
+  // Records besides the devices' (a simulated rig's ground truth); null when there are none.
+  std::unique_ptr<SessionSource> source;
+  std::set<std::string> session_cameras;  // names
 
   // Control flags (any thread).
   std::atomic<bool> stop_requested{false};

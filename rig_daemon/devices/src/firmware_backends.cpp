@@ -6,8 +6,9 @@
 // one running index since activation by noticing when a new train starts (the edge index does not
 // increase), so a frame's trigger_index and the FSR sample's trigger_index agree.
 //
-// With a simulated world in the context, the simulated board's ADC reads the world's probe force
-// through the default FsrCalibration (the FSR's power law), so the FSR reports the specimen force.
+// Given a SimulatedBoardInput (the rig has a simulated world), the simulated board's ADC reads the
+// probe force through the default FsrCalibration (the FSR's power law), so the FSR reports the
+// specimen force.
 #include <algorithm>
 #include <cmath>
 #include <memory>
@@ -15,7 +16,6 @@
 
 #include "firmware_host/driver/shared_device.h"
 #include "rig_daemon/devices/registry.h"
-#include "rig_daemon/devices/sim_world.h"
 
 namespace hc::devices {
 
@@ -35,7 +35,8 @@ struct BoardOptions {
     node.optional("seed", seed);
   }
 
-  Result<std::shared_ptr<fw::SharedFirmwareDevice>> acquire(const DeviceContext& ctx) const {
+  Result<std::shared_ptr<fw::SharedFirmwareDevice>> acquire(
+      const DeviceContext& ctx, const SimulatedBoardInput& input) const {
     fw::OpenOptions open;
     open.device = device;
     const bool simulated = ctx.clock && ctx.clock->is_simulated();
@@ -43,18 +44,18 @@ struct BoardOptions {
                          ? fw::SimClock::kVirtual
                          : fw::SimClock::kRealTime;
     open.sim.adc_noise_v = adc_noise_v;
-    open.sim.seed = ctx.world ? ctx.world->device_seed(ctx.name + "/adc") : seed;
-    if (ctx.world) {
-      // Firmware µs since the board opened → world time; force → raw through the default FSR
+    open.sim.seed = input.seed ? input.seed(ctx.name + "/adc") : seed;
+    if (input.force_n) {
+      // Firmware µs since the board opened → host time; force → raw through the default FSR
       // power law → volts at the ADC pin.
-      std::shared_ptr<sim::World> world = ctx.world;
-      const std::int64_t epoch = world->clock().now_ns();
+      const std::int64_t epoch = ctx.clock->now_ns();
       const double vref = open.sim.adc_reference_v;
       const double full = std::ldexp(1.0, open.sim.adc_bits) - 1.0;
-      open.sim.adc_source = [world, epoch, vref, full](std::uint8_t, std::uint64_t t_us) {
+      open.sim.adc_source = [force_n = input.force_n, epoch, vref, full](std::uint8_t,
+                                                                         std::uint64_t t_us) {
         FsrCalibration cal;
         cal.full_scale = full;
-        const double force = world->true_force_n(epoch + static_cast<std::int64_t>(t_us) * 1000);
+        const double force = force_n(epoch + static_cast<std::int64_t>(t_us) * 1000);
         return std::clamp(cal.to_raw(force) / full * vref, 0.0, vref);
       };
     }
@@ -102,7 +103,8 @@ Status board_error(const Status& s) {
 // ------------------------------------------------------------------------------------------------
 class FirmwareTrigger final : public Trigger {
  public:
-  explicit FirmwareTrigger(const DeviceContext& ctx) : Trigger(ctx) {}
+  FirmwareTrigger(const DeviceContext& ctx, SimulatedBoardInput input)
+      : Trigger(ctx), input_(std::move(input)) {}
 
   bool running() const override { return running_; }
   std::vector<std::uint32_t> lines() const override { return lines_; }
@@ -124,7 +126,7 @@ class FirmwareTrigger final : public Trigger {
     return node.status();
   }
   Status on_activate() override {
-    Result<std::shared_ptr<fw::SharedFirmwareDevice>> b = board_.acquire(context());
+    Result<std::shared_ptr<fw::SharedFirmwareDevice>> b = board_.acquire(context(), input_);
     if (!b.ok()) return board_error(b.status());
     dev_ = std::move(b).value();
     index_.reset();
@@ -229,6 +231,7 @@ class FirmwareTrigger final : public Trigger {
     return {};
   }
 
+  SimulatedBoardInput input_;
   BoardOptions board_;
   std::vector<std::uint32_t> lines_{0};
   std::vector<std::uint32_t> adc_channels_{0};
@@ -244,7 +247,8 @@ class FirmwareTrigger final : public Trigger {
 // ------------------------------------------------------------------------------------------------
 class FirmwareFsr final : public Fsr {
  public:
-  explicit FirmwareFsr(const DeviceContext& ctx) : Fsr(ctx) {}
+  FirmwareFsr(const DeviceContext& ctx, SimulatedBoardInput input)
+      : Fsr(ctx), input_(std::move(input)) {}
 
   FsrCalibration calibration() const override { return cal_; }
   double sample_rate_hz() const override { return 0.0; }  // one sample per trigger edge
@@ -257,7 +261,7 @@ class FirmwareFsr final : public Fsr {
     return node.status();
   }
   Status on_activate() override {
-    Result<std::shared_ptr<fw::SharedFirmwareDevice>> b = board_.acquire(context());
+    Result<std::shared_ptr<fw::SharedFirmwareDevice>> b = board_.acquire(context(), input_);
     if (!b.ok()) return board_error(b.status());
     dev_ = std::move(b).value();
     index_.reset();
@@ -298,6 +302,7 @@ class FirmwareFsr final : public Fsr {
   }
 
  private:
+  SimulatedBoardInput input_;
   BoardOptions board_;
   std::uint32_t channel_ = 0;
   FsrCalibration cal_;
@@ -308,17 +313,17 @@ class FirmwareFsr final : public Fsr {
 
 }  // namespace
 
-Status register_firmware_backends(BackendRegistry& registry) {
+Status register_firmware_backends(BackendRegistry& registry, SimulatedBoardInput input) {
   HC_RETURN_IF_ERROR(registry.add<Trigger>(
       "firmware",
-      [](const DeviceContext& ctx) -> Result<std::unique_ptr<Trigger>> {
-        return std::unique_ptr<Trigger>(std::make_unique<FirmwareTrigger>(ctx));
+      [input](const DeviceContext& ctx) -> Result<std::unique_ptr<Trigger>> {
+        return std::unique_ptr<Trigger>(std::make_unique<FirmwareTrigger>(ctx, input));
       },
       "trigger lines of the trigger/FSR firmware (USB or its simulator)"));
   HC_RETURN_IF_ERROR(registry.add<Fsr>(
       "firmware",
-      [](const DeviceContext& ctx) -> Result<std::unique_ptr<Fsr>> {
-        return std::unique_ptr<Fsr>(std::make_unique<FirmwareFsr>(ctx));
+      [input](const DeviceContext& ctx) -> Result<std::unique_ptr<Fsr>> {
+        return std::unique_ptr<Fsr>(std::make_unique<FirmwareFsr>(ctx, input));
       },
       "FSR on the trigger/FSR firmware's edge-synchronised ADC"));
   return {};

@@ -18,10 +18,10 @@
 #include "rig_daemon/devices/force_torque.h"
 #include "rig_daemon/devices/fsr.h"
 #include "rig_daemon/devices/registry.h"
-#include "rig_daemon/devices/sim_world.h"
 #include "rig_daemon/recording/session_conventions.h"
 #include "rig_daemon/session/codec.h"
 #include "rig_daemon/session/topics.h"
+#include "rig_daemon/simulation/sim_backends.h"
 
 namespace hc::calib::testing {
 
@@ -48,13 +48,12 @@ inline Status record_sim_force_session(const std::filesystem::path& path,
   wo.seed = spec.seed;
   auto world = std::make_shared<dev::sim::World>(wo, clock);
   dev::BackendRegistry registry;
-  HC_RETURN_IF_ERROR(dev::register_sim_backends(registry));
+  HC_RETURN_IF_ERROR(dev::register_sim_backends(registry, world));
   const auto ctx = [&](const std::string& name) {
     dev::DeviceContext c;
     c.name = name;
     c.backend = "sim";
     c.clock = clock;
-    c.world = world;
     return c;
   };
   HC_ASSIGN_OR_RETURN(std::unique_ptr<dev::Arm> arm, registry.create<dev::Arm>(ctx("arm")));
@@ -98,9 +97,9 @@ inline Status record_sim_force_session(const std::filesystem::path& path,
                                                       s.json_schema, meta("fsr", "fsr")));
   }
   const session::MessageSchema& truth_schema = session::ground_truth_schema();
-  HC_ASSIGN_OR_RETURN(ch_truth, rec->add_json_channel(session::kGroundTruthTopic,
-                                                      truth_schema.name, truth_schema.json_schema,
-                                                      meta("world", "ground_truth")));
+  HC_ASSIGN_OR_RETURN(
+      ch_truth, rec->add_json_channel(session::kGroundTruthTopic, truth_schema.name,
+                                      truth_schema.json_schema, meta("world", "ground_truth")));
   const dev::FsrCalibration fc = fsr->calibration();
   Json calib{{"ft",
               {{"counts_per_n", ft->calibration().counts_per_n},

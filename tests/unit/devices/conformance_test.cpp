@@ -8,7 +8,7 @@
 #include <vector>
 
 #include "replay_support.h"
-#include "rig_daemon/devices/replay.h"
+#include "rig_daemon/replay/replay.h"
 #include "rig_daemon/session/codec.h"
 #include "sim_support.h"
 #include "test_data.h"
@@ -120,7 +120,7 @@ class Conformance : public ::testing::TestWithParam<BackendCase> {
       rig.replay = s.ok() ? *s : nullptr;
     }
     Result<std::unique_ptr<Device>> made =
-        rig.registry.create(GetParam().kind, rig.context(name, GetParam().backend));
+        rig.create(GetParam().kind, rig.context(name, GetParam().backend));
     EXPECT_TRUE(made.ok()) << made.status().to_string();
     return made.ok() ? std::move(made).value() : nullptr;
   }

@@ -5,8 +5,8 @@
 
 #include <cmath>
 
-#include "rig_daemon/devices/hyperelastic_specimen.h"
-#include "rig_daemon/devices/specimen.h"
+#include "rig_daemon/simulation/hyperelastic_specimen.h"
+#include "rig_daemon/simulation/specimen.h"
 
 namespace hc::devices::sim {
 namespace {
@@ -81,7 +81,7 @@ TEST(HyperelasticSpecimen, OptionsAreValidated) {
 }  // namespace
 }  // namespace hc::devices::sim
 
-#include "rig_daemon/devices/sim_world.h"
+#include "rig_daemon/simulation/sim_world.h"
 
 namespace hc::devices::sim {
 namespace {

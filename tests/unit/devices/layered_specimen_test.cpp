@@ -6,8 +6,8 @@
 #include <gtest/gtest.h>
 
 #include "common/config.h"
-#include "rig_daemon/devices/hyperelastic_specimen.h"
-#include "rig_daemon/devices/sim_world.h"
+#include "rig_daemon/simulation/hyperelastic_specimen.h"
+#include "rig_daemon/simulation/sim_world.h"
 
 namespace hc::devices::sim {
 namespace {
@@ -44,8 +44,10 @@ TEST(LayeredSpecimen, OneLayerIsTheHomogeneousBlock) {
 TEST(LayeredSpecimen, StackIndentsBetweenItsUniformBlocks) {
   const double soft = force_at_2mm(block({}, kSoftPa));
   const double stiff = force_at_2mm(block({}, kStiffPa));
-  const double stiff_on_top = force_at_2mm(block({{0.008, kSoftPa, 0.45, 1.0}, {0.008, kStiffPa, 0.45, 1.0}}));
-  const double soft_on_top = force_at_2mm(block({{0.008, kStiffPa, 0.45, 1.0}, {0.008, kSoftPa, 0.45, 1.0}}));
+  const double stiff_on_top =
+      force_at_2mm(block({{0.008, kSoftPa, 0.45, 1.0}, {0.008, kStiffPa, 0.45, 1.0}}));
+  const double soft_on_top =
+      force_at_2mm(block({{0.008, kStiffPa, 0.45, 1.0}, {0.008, kSoftPa, 0.45, 1.0}}));
   EXPECT_GT(stiff_on_top, soft);
   EXPECT_LT(stiff_on_top, stiff);
   EXPECT_GT(soft_on_top, soft);

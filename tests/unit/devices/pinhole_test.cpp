@@ -7,7 +7,7 @@
 #include <numbers>
 
 #include "rig_daemon/devices/device.h"
-#include "rig_daemon/devices/sim_dots.h"
+#include "rig_daemon/simulation/sim_dots.h"
 
 namespace hc::devices::sim {
 namespace {
@@ -59,8 +59,7 @@ TEST(Pinhole, PoseMovesThePoint) {
 TEST(Pinhole, LookAtPutsTheTargetOnThePrincipalPointWithZUp) {
   CameraModel cam = simple_camera();
   look_at({0.3, -0.2, 0.4}, {0.0, 0.0, 0.05}, cam);
-  EXPECT_NEAR((cam.R * cam.R.transpose() - Eigen::Matrix3d::Identity()).norm(),
-              0.0, 1e-12);
+  EXPECT_NEAR((cam.R * cam.R.transpose() - Eigen::Matrix3d::Identity()).norm(), 0.0, 1e-12);
   EXPECT_NEAR(cam.R.determinant(), 1.0, 1e-12);
   auto uv = cam.project({0.0, 0.0, 0.05});
   ASSERT_TRUE(uv);

@@ -8,11 +8,11 @@
 #include <map>
 
 #include "replay_support.h"
-#include "rig_daemon/devices/replay.h"
 #include "rig_daemon/recording/foxglove_image.h"
 #include "rig_daemon/recording/mcap_reader.h"
 #include "rig_daemon/recording/mcap_writer.h"
 #include "rig_daemon/recording/session_conventions.h"
+#include "rig_daemon/replay/replay.h"
 #include "rig_daemon/session/codec.h"
 #include "sim_support.h"
 #include "test_data.h"
@@ -35,7 +35,7 @@ struct Replayer {
     EXPECT_TRUE(s.ok()) << s.status().to_string();
     session = *s;
     clock = std::make_shared<SimulatedClock>(5'000'000'000);
-    EXPECT_TRUE(register_replay_backends(registry).ok());
+    EXPECT_TRUE(register_replay_backends(registry, session).ok());
   }
   template <typename D>
   std::unique_ptr<D> make(const std::string& name, const std::string& yaml = "{}") {
@@ -43,7 +43,6 @@ struct Replayer {
     ctx.name = name;
     ctx.backend = "replay";
     ctx.clock = clock;
-    ctx.replay = session;
     auto d = registry.create<D>(ctx);
     EXPECT_TRUE(d.ok()) << d.status().to_string();
     Status s = configure_from_yaml(**d, yaml);
@@ -189,15 +188,14 @@ TEST(Replay, MissingStreamsAndSessionsAreErrors) {
   ctx.name = "ft9";
   ctx.backend = "replay";
   ctx.clock = rp.clock;
-  ctx.replay = rp.session;
   auto d = rp.registry.create<ForceTorque>(ctx);
   ASSERT_TRUE(d.ok());
   Status s = configure_from_yaml(**d, "{}");
   EXPECT_EQ(s.code(), StatusCode::kNotFound);
   EXPECT_NE(s.message().find("ft9"), std::string::npos);
   EXPECT_TRUE(configure_from_yaml(**d, "{source: ft}").ok());  // serves another device's stream
-  ctx.replay = nullptr;
-  EXPECT_EQ(rp.registry.create<Arm>(ctx).status().code(), StatusCode::kFailedPrecondition);
+  BackendRegistry none;
+  EXPECT_EQ(register_replay_backends(none, nullptr).code(), StatusCode::kInvalidArgument);
   ReplaySession::Options bad;
   bad.speed = 0.0;
   EXPECT_EQ(ReplaySession::open(path, bad).status().code(), StatusCode::kInvalidArgument);

@@ -179,14 +179,13 @@ struct RealTimeRig {
     sim::WorldOptions options;
     options.seed = 5;
     world = std::make_shared<sim::World>(options, monotonic_clock());
-    EXPECT_TRUE(register_sim_backends(registry).ok());
+    EXPECT_TRUE(register_sim_backends(registry, world).ok());
   }
   std::unique_ptr<Camera> camera(const std::string& yaml) {
     DeviceContext ctx;
     ctx.name = "cam";
     ctx.backend = "sim";
     ctx.clock = world->clock_ptr();
-    ctx.world = world;
     Result<std::unique_ptr<Camera>> made = registry.create<Camera>(ctx);
     EXPECT_TRUE(made.ok());
     if (!made.ok()) return nullptr;
@@ -252,8 +251,8 @@ TEST(SimCameraRender, RealTimeReadsDoNotWaitForPixelsAndOverrunsCountLost) {
   // (a static scene; the noise is seeded by device name and frame index).
   SimRig sim(5);
   auto ref = sim.make<Camera>(
-      "cam", std::string(kFastBigCamera)
-                 .replace(std::string(kFastBigCamera).size() - 5, 5, "false}"));
+      "cam",
+      std::string(kFastBigCamera).replace(std::string(kFastBigCamera).size() - 5, 5, "false}"));
   ASSERT_TRUE(ref->activate().ok());
   std::vector<Frame> ref_frames;
   const std::uint64_t last = std::min<std::uint64_t>(got[2].frame_index, 30);

@@ -1,6 +1,6 @@
 // The simulated scene: probe geometry and rendering with occlusion, the calibration board (checked
 // with OpenCV's own chessboard detector), the seeded board pose sequence.
-#include "rig_daemon/devices/sim_scene.h"
+#include "rig_daemon/simulation/sim_scene.h"
 
 #include <gtest/gtest.h>
 
@@ -296,7 +296,7 @@ TEST(SimScene, BoardPosesAreSeededTiltedAndSeenBySubsets) {
     cams[static_cast<std::size_t>(i)].cy = 119.5;
     const double phi = -std::numbers::pi * i / 6.0;
     look_at({0.3 * std::cos(phi), 0.3 * std::sin(phi), 0.3}, {0, 0, 0.05},
-                 cams[static_cast<std::size_t>(i)]);
+            cams[static_cast<std::size_t>(i)]);
   }
   int subset_poses = 0;
   std::vector<int> seen_by_camera(7, 0);

@@ -4,7 +4,7 @@
 #include <cmath>
 #include <numbers>
 
-#include "rig_daemon/devices/specimen.h"
+#include "rig_daemon/simulation/specimen.h"
 
 namespace hc::devices::sim {
 namespace {

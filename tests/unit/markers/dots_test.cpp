@@ -10,7 +10,7 @@
 #include <random>
 #include <vector>
 
-#include "rig_daemon/devices/sim_dots.h"
+#include "rig_daemon/simulation/sim_dots.h"
 
 namespace hc::markers {
 namespace {

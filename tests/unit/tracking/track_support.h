@@ -16,7 +16,7 @@
 #include "processing/fem/verification.h"
 #include "rig_daemon/daemon/plan.h"
 #include "rig_daemon/daemon/rig_config.h"
-#include "rig_daemon/devices/sim_dots.h"
+#include "rig_daemon/simulation/sim_dots.h"
 #include "sim_session.h"
 
 namespace hc::tracking::testing {

@@ -12,15 +12,16 @@
 #include "common/json.h"
 #include "common/status.h"
 #include "rig_daemon/daemon/rig_config.h"
+#include "rig_daemon/daemon/session_source.h"
 #include "rig_daemon/devices/arm.h"
 #include "rig_daemon/devices/camera.h"
 #include "rig_daemon/devices/clock.h"
 #include "rig_daemon/devices/force_torque.h"
 #include "rig_daemon/devices/fsr.h"
 #include "rig_daemon/devices/registry.h"
-#include "rig_daemon/devices/replay.h"
-#include "rig_daemon/devices/sim_world.h"
 #include "rig_daemon/devices/trigger.h"
+#include "rig_daemon/replay/replay.h"
+#include "rig_daemon/simulation/sim_world.h"
 
 namespace hc::rig {
 
@@ -44,6 +45,10 @@ class Rig {
   std::shared_ptr<devices::Clock> clock_ptr() const { return clock_; }
   // The simulated world, or null when no device is simulated.
   devices::sim::World* world() const { return world_.get(); }
+  // A session's records besides the devices' (the simulated world's), or null when there are none.
+  std::unique_ptr<SessionSource> make_session_source() const {
+    return simulated_world_source(world_);
+  }
   // The session being replayed, or null.
   devices::ReplaySession* replay() const { return replay_.get(); }
 

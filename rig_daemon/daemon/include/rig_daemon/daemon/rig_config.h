@@ -17,7 +17,7 @@
 //   compression: zstd              # zstd | lz4 | none
 //   seed: 1                        # seed of the simulated world
 //   http: {listen: "127.0.0.1:7878", allow_remote: false, enabled: true}   # the live page
-//   world: {...}                   # options of the simulated world (devices/sim_world.h)
+//   world: {...}                   # options of the simulated world (simulation/sim_world.h)
 //
 // `rigd` with no arguments uses kEmbeddedDefaultRigConfig (everything "sim").
 #pragma once

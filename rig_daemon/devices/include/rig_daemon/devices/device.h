@@ -42,11 +42,6 @@
 
 namespace hc::devices {
 
-namespace sim {
-class World;  // rig_daemon/devices/sim_world.h
-}
-class ReplaySession;  // rig_daemon/devices/replay.h
-
 enum class DeviceKind : std::uint8_t { kCamera, kTrigger, kFsr, kForceTorque, kArm };
 inline constexpr DeviceKind kAllDeviceKinds[] = {DeviceKind::kCamera, DeviceKind::kTrigger,
                                                  DeviceKind::kFsr, DeviceKind::kForceTorque,
@@ -83,11 +78,9 @@ struct DeviceInfo {
 
 // What a backend factory gets.
 struct DeviceContext {
-  std::string name;                       // device name from the rig config ("cam0", "ft")
-  std::string backend;                    // backend name ("sim", "aravis", "replay", ...)
-  std::shared_ptr<Clock> clock;           // host monotonic time (never null; set by the caller)
-  std::shared_ptr<sim::World> world;      // the shared simulated world (simulated backends)
-  std::shared_ptr<ReplaySession> replay;  // the session being replayed (replay backends)
+  std::string name;              // device name from the rig config ("cam0", "ft")
+  std::string backend;           // backend name ("sim", "aravis", "replay", ...)
+  std::shared_ptr<Clock> clock;  // host monotonic time (never null; set by the caller)
 };
 
 class Device {

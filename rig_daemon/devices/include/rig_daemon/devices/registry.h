@@ -10,6 +10,7 @@
 // objects of static libraries and with them their initialisers.
 #pragma once
 
+#include <cstdint>
 #include <functional>
 #include <map>
 #include <memory>
@@ -28,8 +29,8 @@
 
 namespace hc::devices {
 
-// Makes an unconfigured device of kind D from the context (name, backend, clock, world, replay).
-// Fails e.g. when a simulated backend gets no world.
+// Makes an unconfigured device of kind D from the context (name, backend, clock). What else a
+// backend needs (the simulated world, a recorded session) its factory holds from registration.
 template <typename D>
 using DeviceFactory = std::function<Result<std::unique_ptr<D>>(const DeviceContext&)>;
 
@@ -75,14 +76,15 @@ class BackendRegistry {
   std::map<std::pair<DeviceKind, std::string>, Entry, std::less<>> entries_;
 };
 
-// Backends of this library:
-//  * "sim" for every kind (need DeviceContext::world; rig_daemon/devices/sim_world.h),
-//  * "replay" for every kind (need DeviceContext::replay; rig_daemon/devices/replay.h),
-//  * "firmware" for trigger and FSR (the trigger/FSR firmware through firmware_host's host driver).
-Status register_sim_backends(BackendRegistry& registry);
-Status register_replay_backends(BackendRegistry& registry);
-Status register_firmware_backends(BackendRegistry& registry);
-// All three.
-Status register_device_backends(BackendRegistry& registry);
+// Backends of this library: "firmware" for trigger and FSR (the trigger/FSR firmware through
+// firmware_host's host driver). The simulated board's ADC measures `input.force_n` when given (the
+// simulated world's probe force: rig_daemon/simulation/sim_backends.h), else nothing.
+// Elsewhere: "sim" (rig_daemon/simulation/sim_backends.h), "replay" (rig_daemon/replay/replay.h)
+// and the hardware backends (rig_daemon/backends/hardware_backends.h).
+struct SimulatedBoardInput {
+  std::function<double(std::int64_t host_ns)> force_n;        // probe force (N) at a host time
+  std::function<std::uint64_t(const std::string& key)> seed;  // per-device seeds
+};
+Status register_firmware_backends(BackendRegistry& registry, SimulatedBoardInput input = {});
 
 }  // namespace hc::devices

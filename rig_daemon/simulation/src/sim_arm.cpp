@@ -55,6 +55,8 @@ class SimArm final : public Arm {
 
 }  // namespace
 
-DeviceFactory<Arm> arm_factory() { return sim_factory<Arm, SimArm>(); }
+DeviceFactory<Arm> arm_factory(std::shared_ptr<World> world) {
+  return sim_factory<Arm, SimArm>(std::move(world));
+}
 
 }  // namespace hc::devices::sim_backend

@@ -113,6 +113,8 @@ class SimFsr final : public Fsr {
 
 }  // namespace
 
-DeviceFactory<Fsr> fsr_factory() { return sim_factory<Fsr, SimFsr>(); }
+DeviceFactory<Fsr> fsr_factory(std::shared_ptr<World> world) {
+  return sim_factory<Fsr, SimFsr>(std::move(world));
+}
 
 }  // namespace hc::devices::sim_backend

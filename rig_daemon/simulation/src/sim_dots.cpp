@@ -1,6 +1,6 @@
-#include "rig_daemon/devices/sim_dots.h"
+#include "rig_daemon/simulation/sim_dots.h"
 
-#include "rig_daemon/devices/sim_scene.h"
+#include "rig_daemon/simulation/sim_scene.h"
 
 #include <Eigen/Geometry>
 

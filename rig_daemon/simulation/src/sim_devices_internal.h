@@ -1,6 +1,6 @@
 // Shared pieces of the "sim" backends (sim_*.cpp, one device kind per file; sim_devices.cpp
 // registers them): the simulated world's parts every device uses, the read loop of a stream and the
-// factory. Not a public header: the public interface is registry.h (register_sim_backends).
+// factory. Not a public header: the public interface is sim_backends.h (register_sim_backends).
 #pragma once
 
 #include <algorithm>
@@ -12,8 +12,8 @@
 #include <string>
 #include <vector>
 
-#include "rig_daemon/devices/registry.h"
-#include "rig_daemon/devices/sim_world.h"
+#include "rig_daemon/simulation/sim_backends.h"
+#include "rig_daemon/simulation/sim_world.h"
 
 namespace hc::devices::sim_backend {
 
@@ -80,12 +80,6 @@ class SimParts {
   std::int64_t device_offset_ns_ = 0;
 };
 
-inline Result<std::shared_ptr<World>> need_world(const DeviceContext& ctx) {
-  if (!ctx.world)
-    return failed_precondition("backend 'sim' needs the simulated world (DeviceContext::world)");
-  return ctx.world;
-}
-
 // The loop every periodic or event-driven stream shares. `next_due()` is the time the next item
 // becomes available (nullopt: none scheduled yet); `emit(out)` produces (or loses) that item and
 // returns false if it was lost.
@@ -110,18 +104,17 @@ Result<std::size_t> stream_read(Self& self, SimParts& parts, std::vector<Item>& 
 }
 
 template <typename D, typename Impl>
-DeviceFactory<D> sim_factory() {
-  return [](const DeviceContext& ctx) -> Result<std::unique_ptr<D>> {
-    HC_ASSIGN_OR_RETURN(std::shared_ptr<World> world, need_world(ctx));
-    return std::unique_ptr<D>(std::make_unique<Impl>(ctx, std::move(world)));
+DeviceFactory<D> sim_factory(std::shared_ptr<World> world) {
+  return [world](const DeviceContext& ctx) -> Result<std::unique_ptr<D>> {
+    return std::unique_ptr<D>(std::make_unique<Impl>(ctx, world));
   };
 }
 
 // The factories of the device kinds (sim_<kind>.cpp).
-DeviceFactory<Camera> camera_factory();
-DeviceFactory<Trigger> trigger_factory();
-DeviceFactory<Fsr> fsr_factory();
-DeviceFactory<ForceTorque> force_torque_factory();
-DeviceFactory<Arm> arm_factory();
+DeviceFactory<Camera> camera_factory(std::shared_ptr<World> world);
+DeviceFactory<Trigger> trigger_factory(std::shared_ptr<World> world);
+DeviceFactory<Fsr> fsr_factory(std::shared_ptr<World> world);
+DeviceFactory<ForceTorque> force_torque_factory(std::shared_ptr<World> world);
+DeviceFactory<Arm> arm_factory(std::shared_ptr<World> world);
 
 }  // namespace hc::devices::sim_backend

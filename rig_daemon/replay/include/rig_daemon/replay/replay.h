@@ -26,6 +26,7 @@
 #include "common/status.h"
 #include "rig_daemon/devices/clock.h"
 #include "rig_daemon/devices/device.h"
+#include "rig_daemon/devices/registry.h"
 
 namespace hc::devices {
 
@@ -93,5 +94,9 @@ class ReplaySession {
   mutable std::mutex mutex_;
   std::optional<std::int64_t> anchor_ns_;
 };
+
+// Registers "replay" for every device kind, each device serving its stream of `session`.
+// kInvalidArgument if `session` is null or a kind already has a "replay" backend.
+Status register_replay_backends(BackendRegistry& registry, std::shared_ptr<ReplaySession> session);
 
 }  // namespace hc::devices

@@ -1,4 +1,4 @@
-#include "rig_daemon/devices/hyperelastic_specimen.h"
+#include "rig_daemon/simulation/hyperelastic_specimen.h"
 
 #include <algorithm>
 #include <chrono>

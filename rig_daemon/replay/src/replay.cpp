@@ -1,4 +1,4 @@
-#include "rig_daemon/devices/replay.h"
+#include "rig_daemon/replay/replay.h"
 
 #include <algorithm>
 #include <cmath>

@@ -20,7 +20,7 @@
 
 #include "common/config.h"
 #include "common/status.h"
-#include "rig_daemon/devices/specimen.h"
+#include "rig_daemon/simulation/specimen.h"
 
 namespace hc::devices::sim {
 

@@ -18,7 +18,6 @@ CameraModel default_camera();
 
 }  // namespace hc::devices::sim
 
-
 namespace hc::devices::sim {
 
 class ProbeLayer;  // sim_scene.h
@@ -29,14 +28,14 @@ struct DotStyle {
   std::uint8_t dot = 220;
 };
 
-// Draws each world-frame dot centre (at least 1 mm in front of the camera) as a disc of radius f * radius_m / depth pixels (the disc's
-// foreshortening is ignored: dots are small) with anti-aliased edges (8 x 8 supersampling of edge
-// pixels), so the intensity-weighted centroid of a dot lands on its projected centre to a few
-// hundredths of a pixel. `frame` must be Mono8 of the camera's size; it is not cleared.
-// Returns how many dots were drawn (in front of the camera and at least partly in the image).
-// With an `occluder` (the probe, already composited into `frame`), a dot pixel the probe covers
-// in front of the dot (probe depth < dot centre depth) shows the dot only through the uncovered
-// fraction; a dot in front of the probe is drawn over it.
+// Draws each world-frame dot centre (at least 1 mm in front of the camera) as a disc of radius f *
+// radius_m / depth pixels (the disc's foreshortening is ignored: dots are small) with anti-aliased
+// edges (8 x 8 supersampling of edge pixels), so the intensity-weighted centroid of a dot lands on
+// its projected centre to a few hundredths of a pixel. `frame` must be Mono8 of the camera's size;
+// it is not cleared. Returns how many dots were drawn (in front of the camera and at least partly
+// in the image). With an `occluder` (the probe, already composited into `frame`), a dot pixel the
+// probe covers in front of the dot (probe depth < dot centre depth) shows the dot only through the
+// uncovered fraction; a dot in front of the probe is drawn over it.
 std::size_t render_dots(const CameraModel& cam, const std::vector<Eigen::Vector3d>& centers_m,
                         double radius_m, const DotStyle& style, Frame& frame,
                         const ProbeLayer* occluder = nullptr);

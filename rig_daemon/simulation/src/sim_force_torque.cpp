@@ -123,8 +123,8 @@ class SimForceTorque final : public ForceTorque {
 
 }  // namespace
 
-DeviceFactory<ForceTorque> force_torque_factory() {
-  return sim_factory<ForceTorque, SimForceTorque>();
+DeviceFactory<ForceTorque> force_torque_factory(std::shared_ptr<World> world) {
+  return sim_factory<ForceTorque, SimForceTorque>(std::move(world));
 }
 
 }  // namespace hc::devices::sim_backend

@@ -16,8 +16,8 @@
 #include <sys/syscall.h>
 #include <unistd.h>
 
-#include "rig_daemon/devices/sim_dots.h"
-#include "rig_daemon/devices/sim_scene.h"
+#include "rig_daemon/simulation/sim_dots.h"
+#include "rig_daemon/simulation/sim_scene.h"
 
 #include "sim_devices_internal.h"
 
@@ -340,7 +340,7 @@ class SimCamera final : public Camera {
     // A default view: 0.35 m above and in front of the specimen, looking at its centre.
     const auto& spec = parts_.world().options().specimen;
     look_at(Eigen::Vector3d(spec.center_m.x(), spec.center_m.y() - 0.2, spec.top_z_m + 0.3),
-                 Eigen::Vector3d(spec.center_m.x(), spec.center_m.y(), spec.top_z_m), cam);
+            Eigen::Vector3d(spec.center_m.x(), spec.center_m.y(), spec.top_z_m), cam);
     HC_RETURN_IF_ERROR(read_camera(node, cam));
     cam_ = cam;
     parts_.world().register_camera(name(), cam_);
@@ -487,7 +487,7 @@ class SimCamera final : public Camera {
   std::uint32_t first_frame_id_ = 65400;  // like the fake GigE camera: wraps early
   RenderSetup setup_;
   sim::ProbeLayer probe_layer_;  // scratch of the inline renderer, reused between frames
-  bool render_thread_ = false;  // see on_configure
+  bool render_thread_ = false;   // see on_configure
   int render_buffers_ = 8;
   std::int64_t t0_ = 0;
   std::uint64_t k_ = 0;
@@ -500,6 +500,8 @@ class SimCamera final : public Camera {
 
 }  // namespace
 
-DeviceFactory<Camera> camera_factory() { return sim_factory<Camera, SimCamera>(); }
+DeviceFactory<Camera> camera_factory(std::shared_ptr<World> world) {
+  return sim_factory<Camera, SimCamera>(std::move(world));
+}
 
 }  // namespace hc::devices::sim_backend

@@ -115,6 +115,8 @@ class SimTrigger final : public Trigger {
 
 }  // namespace
 
-DeviceFactory<Trigger> trigger_factory() { return sim_factory<Trigger, SimTrigger>(); }
+DeviceFactory<Trigger> trigger_factory(std::shared_ptr<World> world) {
+  return sim_factory<Trigger, SimTrigger>(std::move(world));
+}
 
 }  // namespace hc::devices::sim_backend

@@ -1,4 +1,4 @@
-#include "rig_daemon/devices/sim_world.h"
+#include "rig_daemon/simulation/sim_world.h"
 
 #include <algorithm>
 #include <cmath>

@@ -6,8 +6,8 @@
 #include <string_view>
 
 #include "rig_daemon/devices/registry.h"
-#include "rig_daemon/devices/replay.h"
 #include "rig_daemon/recording/foxglove_image.h"
+#include "rig_daemon/replay/replay.h"
 #include "rig_daemon/session/codec.h"
 
 namespace hc::devices {
@@ -71,7 +71,7 @@ std::uint64_t counter_wrap(const Item&) {
   return 0;
 }
 
-// Finds the session and the stream a replay device serves.
+// The session a replay device serves (from its factory), and the stream in it.
 struct ReplayBinding {
   std::shared_ptr<ReplaySession> session;
   const ReplaySession::Stream* stream = nullptr;
@@ -80,7 +80,6 @@ struct ReplayBinding {
     std::string source = ctx.name;
     node.optional("source", source);
     HC_RETURN_IF_ERROR(node.status());
-    session = ctx.replay;
     stream = session->find(source, kind);
     if (!stream)
       return not_found("replay: the session has no " + std::string(to_string(kind)) +
@@ -210,7 +209,8 @@ Status bind_and_anchor(ReplayBinding& b, const Clock& clock) {
 // ------------------------------------------------------------------------------------------------
 class ReplayCamera final : public Camera {
  public:
-  using Camera::Camera;
+  ReplayCamera(const DeviceContext& ctx, std::shared_ptr<ReplaySession> session)
+      : Camera(ctx), binding_{std::move(session), nullptr} {}
   CameraInfo camera_info() const override { return info_; }
 
  protected:
@@ -260,7 +260,8 @@ class ReplayCamera final : public Camera {
 
 class ReplayTrigger final : public Trigger {
  public:
-  using Trigger::Trigger;
+  ReplayTrigger(const DeviceContext& ctx, std::shared_ptr<ReplaySession> session)
+      : Trigger(ctx), binding_{std::move(session), nullptr} {}
   bool running() const override { return false; }  // the recorded edges come regardless
   std::vector<std::uint32_t> lines() const override { return lines_; }
 
@@ -300,7 +301,8 @@ class ReplayTrigger final : public Trigger {
 
 class ReplayFsr final : public Fsr {
  public:
-  using Fsr::Fsr;
+  ReplayFsr(const DeviceContext& ctx, std::shared_ptr<ReplaySession> session)
+      : Fsr(ctx), binding_{std::move(session), nullptr} {}
   FsrCalibration calibration() const override { return cal_; }
   double sample_rate_hz() const override { return rate_hz_; }
 
@@ -332,7 +334,8 @@ class ReplayFsr final : public Fsr {
 
 class ReplayForceTorque final : public ForceTorque {
  public:
-  using ForceTorque::ForceTorque;
+  ReplayForceTorque(const DeviceContext& ctx, std::shared_ptr<ReplaySession> session)
+      : ForceTorque(ctx), binding_{std::move(session), nullptr} {}
   WrenchCalibration calibration() const override { return cal_; }
   double sample_rate_hz() const override { return rate_hz_; }
 
@@ -368,7 +371,8 @@ class ReplayForceTorque final : public ForceTorque {
 
 class ReplayArm final : public Arm {
  public:
-  using Arm::Arm;
+  ReplayArm(const DeviceContext& ctx, std::shared_ptr<ReplaySession> session)
+      : Arm(ctx), binding_{std::move(session), nullptr} {}
   ArmLimits limits() const override { return limits_; }
 
  protected:
@@ -425,35 +429,29 @@ class ReplayArm final : public Arm {
 };
 
 template <typename D, typename Impl>
-DeviceFactory<D> replay_factory() {
-  return [](const DeviceContext& ctx) -> Result<std::unique_ptr<D>> {
-    if (!ctx.replay)
-      return failed_precondition("backend 'replay' needs a session (DeviceContext::replay)");
-    return std::unique_ptr<D>(std::make_unique<Impl>(ctx));
+DeviceFactory<D> replay_factory(std::shared_ptr<ReplaySession> session) {
+  return [session](const DeviceContext& ctx) -> Result<std::unique_ptr<D>> {
+    return std::unique_ptr<D>(std::make_unique<Impl>(ctx, session));
   };
 }
 
 }  // namespace
 
-Status register_replay_backends(BackendRegistry& registry) {
-  HC_RETURN_IF_ERROR(registry.add<Camera>("replay", replay_factory<Camera, ReplayCamera>(),
+Status register_replay_backends(BackendRegistry& registry, std::shared_ptr<ReplaySession> session) {
+  if (!session) return invalid_argument("replay backends need a session");
+  HC_RETURN_IF_ERROR(registry.add<Camera>("replay", replay_factory<Camera, ReplayCamera>(session),
                                           "frames of a recorded session"));
-  HC_RETURN_IF_ERROR(registry.add<Trigger>("replay", replay_factory<Trigger, ReplayTrigger>(),
+  HC_RETURN_IF_ERROR(registry.add<Trigger>("replay",
+                                           replay_factory<Trigger, ReplayTrigger>(session),
                                            "trigger edges of a recorded session"));
-  HC_RETURN_IF_ERROR(registry.add<Fsr>("replay", replay_factory<Fsr, ReplayFsr>(),
+  HC_RETURN_IF_ERROR(registry.add<Fsr>("replay", replay_factory<Fsr, ReplayFsr>(session),
                                        "FSR samples of a recorded session"));
-  HC_RETURN_IF_ERROR(registry.add<ForceTorque>("replay",
-                                               replay_factory<ForceTorque, ReplayForceTorque>(),
-                                               "wrenches of a recorded session"));
-  HC_RETURN_IF_ERROR(registry.add<Arm>("replay", replay_factory<Arm, ReplayArm>(),
+  HC_RETURN_IF_ERROR(
+      registry.add<ForceTorque>("replay", replay_factory<ForceTorque, ReplayForceTorque>(session),
+                                "wrenches of a recorded session"));
+  HC_RETURN_IF_ERROR(registry.add<Arm>("replay", replay_factory<Arm, ReplayArm>(session),
                                        "arm states of a recorded session"));
   return {};
-}
-
-Status register_device_backends(BackendRegistry& registry) {
-  HC_RETURN_IF_ERROR(register_sim_backends(registry));
-  HC_RETURN_IF_ERROR(register_replay_backends(registry));
-  return register_firmware_backends(registry);
 }
 
 }  // namespace hc::devices

@@ -23,12 +23,12 @@
 #include "common/config.h"
 #include "common/status.h"
 #include "rig_daemon/devices/clock.h"
-#include "rig_daemon/devices/hyperelastic_specimen.h"
-#include "rig_daemon/devices/sim_dots.h"
-#include "rig_daemon/devices/sim_scene.h"
-#include "rig_daemon/devices/specimen.h"
 #include "rig_daemon/devices/types.h"
 #include "rig_daemon/session/session_records.h"
+#include "rig_daemon/simulation/hyperelastic_specimen.h"
+#include "rig_daemon/simulation/sim_dots.h"
+#include "rig_daemon/simulation/sim_scene.h"
+#include "rig_daemon/simulation/specimen.h"
 
 namespace hc::devices::sim {
 

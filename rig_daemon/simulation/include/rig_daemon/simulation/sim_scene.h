@@ -35,8 +35,8 @@
 
 #include "common/config.h"
 #include "common/status.h"
-#include "rig_daemon/devices/sim_dots.h"
 #include "rig_daemon/devices/types.h"
+#include "rig_daemon/simulation/sim_dots.h"
 
 namespace hc::devices::sim {
 
@@ -132,8 +132,8 @@ std::size_t render_board(const CameraModel& cam, const BoardSpec& spec, const Bo
 // nearest hit, over row spans that bound the probe's projection (only those pixels are cast).
 class ProbeLayer {
  public:
-  void render(const CameraModel& cam, const ProbeGeometry& probe, const ProbeLook& look,
-              int width, int height);
+  void render(const CameraModel& cam, const ProbeGeometry& probe, const ProbeLook& look, int width,
+              int height);
   bool empty() const { return rows_.empty(); }
   // Coverage (body + marker, each in [0, 1]) and camera depth at a pixel (0, 0, +inf off-probe).
   struct Sample {

@@ -1,4 +1,4 @@
-#include "rig_daemon/devices/sim_scene.h"
+#include "rig_daemon/simulation/sim_scene.h"
 
 #include <Eigen/Geometry>
 
@@ -164,8 +164,7 @@ namespace {
 
 // Rays through pixel positions, in the world frame (origin: the camera centre).
 struct RayCaster {
-  explicit RayCaster(const CameraModel& c)
-      : cam(c), Rt(c.R.transpose()), origin(c.center_m()) {}
+  explicit RayCaster(const CameraModel& c) : cam(c), Rt(c.R.transpose()), origin(c.center_m()) {}
   // Un-normalised world direction of the ray through (u, v).
   Eigen::Vector3d dir(double u, double v) const {
     const Eigen::Vector2d n = cam.undistort_to_normalized(Eigen::Vector2d(u, v));

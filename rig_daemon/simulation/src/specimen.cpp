@@ -1,4 +1,4 @@
-#include "rig_daemon/devices/specimen.h"
+#include "rig_daemon/simulation/specimen.h"
 
 #include <cmath>
 #include <numbers>
