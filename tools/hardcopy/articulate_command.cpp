@@ -27,6 +27,7 @@ struct ArticulateArgs {
   bool no_animation = false;
   bool no_verify = false;
   bool force_wrap = false;
+  bool strict = false;
   std::string output;
   std::string stl;
   bool json = false;
@@ -185,7 +186,14 @@ int run_articulate(const GlobalOptions& global, const ArticulateArgs& args) {
     fmt::print(stderr, "hardcopy articulate: no joint survived; nothing written\n");
     return kExitNo;
   }
-  return r->verification.ok || !options.verify ? kExitYes : kExitNo;
+  if (options.verify && !r->verification.ok) {
+    fmt::print(stderr,
+               "hardcopy articulate: {} check(s) of the carved parts failed (listed under "
+               "\"verification\"); the parts were written{}\n",
+               r->verification.problems.size(), args.strict ? " (--strict: exit 1)" : "");
+    if (args.strict) return kExitNo;
+  }
+  return kExitYes;
 }
 
 }  // namespace
@@ -196,8 +204,9 @@ void add_articulate_commands(CLI::App& app, const GlobalOptions& global, int* ex
       "articulate",
       "Skinned character (glTF/GLB, FBX, COLLADA, .x) -> posable articulated model printed in one "
       "piece (thesis Ch. 6): joints from the skin and the clips, carved into interlocked parts.\n"
-      "Exit 0 when joints were made and the result checks out, 1 when no joint survives (or a "
-      "check failed), 2 on unreadable input.");
+      "Exit 0 when joints were made and the parts written (a failed check of the parts is "
+      "reported, and exits 1 with --strict), 1 when no joint survives (nothing written), 2 on "
+      "unreadable input.");
   c->add_option("CHARACTER", args->input, "Skinned character file")->required();
   c->add_option("--height-mm", args->height_mm, "Printed height (rest pose, along +Y)")
       ->required()
@@ -210,6 +219,7 @@ void add_articulate_commands(CLI::App& app, const GlobalOptions& global, int* ex
               "Ignore the clips (default ball joints unless overridden)");
   c->add_flag("--no-verify", args->no_verify, "Skip the checks of the carved parts");
   c->add_flag("--wrap", args->force_wrap, "Alpha-wrap the character even when a union works");
+  c->add_flag("--strict", args->strict, "Exit 1 when a check of the carved parts fails");
   c->add_option("-o,--output", args->output, "Output 3MF (one object per part, mm)")->required();
   c->add_option("--stl", args->stl, "Also write all parts into one STL (mm)");
   c->add_flag("--json", args->json, "Print one JSON object");

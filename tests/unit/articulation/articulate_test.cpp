@@ -7,7 +7,9 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <numbers>
+#include <vector>
 
 #include "fabrication/articulation/skinned_io.h"
 #include "synthetic_skinned.h"
@@ -88,6 +90,37 @@ TEST(Articulate, SyntheticArmWithoutClipsGetsADefaultBall) {
   EXPECT_LT(std::hypot(j.centre.x(), j.centre.z()), 0.1 * kMm);
   EXPECT_NEAR(j.centre.y(), 0.045, 2.5 * kMm);
   EXPECT_NEAR(j.r_max, 8 * kMm, 0.02 * 8 * kMm);
+  expect_valid(*r, o.printer.clearance_m);
+}
+
+TEST(Articulate, ThreeBoneLimbGivesTwoJointsAlongTheChainAndThreeParts) {
+  HC_SKIP_WHEN_SANITIZED("CGAL's exact booleans take minutes");
+  // The arm's tube with a third bone: joints at y = 45 and 90 mm, each between a bone and its
+  // child in the rig, so the parts form a tree of three.
+  testing::SyntheticLimb limb;
+  limb.bones = 3;
+  limb.length_m = 0.135;
+  limb.segments = 24;
+  limb.rings = 37;
+  const SkinnedCharacter c = testing::skinned_limb(limb);
+  ArticulateOptions o;
+  Result<ArticulateResult> r = articulate(c, o);
+  ASSERT_TRUE(r.ok()) << r.status().to_string();
+  ASSERT_EQ(r->accepted(), 2);
+  std::vector<const Joint*> accepted;
+  for (const Joint& j : r->joints)
+    if (!j.excluded) accepted.push_back(&j);
+  std::sort(accepted.begin(), accepted.end(),
+            [](const Joint* a, const Joint* b) { return a->centre.y() < b->centre.y(); });
+  for (std::size_t k = 0; k < 2; ++k) {
+    const Joint& j = *accepted[k];
+    EXPECT_TRUE(j.tree_edge);
+    EXPECT_EQ(j.parent_link, static_cast<int>(k));
+    EXPECT_EQ(j.child_link, static_cast<int>(k) + 1);
+    EXPECT_LT(std::hypot(j.centre.x(), j.centre.z()), 0.1 * kMm);
+    EXPECT_NEAR(j.centre.y(), 0.045 * static_cast<double>(k + 1), 2.5 * kMm);
+    EXPECT_NEAR(j.r_max, 8 * kMm, 0.02 * 8 * kMm);
+  }
   expect_valid(*r, o.printer.clearance_m);
 }
 

@@ -1,5 +1,6 @@
 // `hardcopy articulate`: exit 0 with the JSON contract and a 3MF of interlocked parts on the
-// smallest real character, exit 2 (nothing written) on unreadable input.
+// smallest real character, exit 1 (nothing written) when no joint survives, exit 2 (nothing
+// written) on unreadable input.
 #include <gtest/gtest.h>
 
 #include <fstream>
@@ -40,6 +41,22 @@ TEST(ArticulateCli, RiggedSimpleGivesTwoPartsAndTheJsonContract) {
   EXPECT_EQ(c["components"], 2);
   EXPECT_EQ(c["boundary_edges"], 0);
   EXPECT_EQ(c["self_intersecting_pairs"], 0);
+}
+
+TEST(ArticulateCli, NoSurvivingJointExitsOneAndWritesNothing) {
+  // RiggedSimple printed 8 mm tall: its one joint's r_max (0.4 mm) leaves no room for a joint
+  // with the PolyJet profile's 0.3 mm clearance, so nothing is posable.
+  ScratchDir dir;
+  const auto out = dir / "tiny.3mf";
+  const CliRun r = hardcopy("articulate " + shared_data("skinned/RiggedSimple.glb").string() +
+                            " --height-mm 8 -o " + out.string() + " --json");
+  EXPECT_EQ(r.exit_code, 1) << r.out;
+  const auto j = nlohmann::json::parse(r.out);
+  ASSERT_EQ(j["joints"].size(), 1u);
+  EXPECT_EQ(j["joints"][0]["excluded"], true);
+  EXPECT_NE(j["joints"][0]["reason"].get<std::string>().find("too thin"), std::string::npos)
+      << j["joints"][0].dump();
+  EXPECT_FALSE(std::filesystem::exists(out));
 }
 
 TEST(ArticulateCli, UnreadableInputExitsTwoAndWritesNothing) {
