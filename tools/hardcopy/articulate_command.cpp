@@ -34,7 +34,9 @@ struct ArticulateArgs {
 };
 
 // Model frame (m, +Y up) -> print frame (mm, +Z up).
-Eigen::Vector3d to_print(const Eigen::Vector3d& p) { return Eigen::Vector3d(p.x(), -p.z(), p.y()) / kMm; }
+Eigen::Vector3d to_print(const Eigen::Vector3d& p) {
+  return Eigen::Vector3d(p.x(), -p.z(), p.y()) / kMm;
+}
 
 TriangleMesh print_mesh(const TriangleMesh& m) {
   TriangleMesh out = m;
@@ -58,11 +60,11 @@ Json joint_json(const Joint& j) {
            {"tree_edge", j.tree_edge}};
   if (j.excluded) out["reason"] = j.reason;
   if (j.type == JointType::kHinge) {
-    out["swing_deg"] = {j.swing.forward  / kDeg, j.swing.backward  / kDeg};
+    out["swing_deg"] = {j.swing.forward / kDeg, j.swing.backward / kDeg};
     if (j.hinge.feasible)
       out["design_mm"] = {{"R", j.hinge.R / kMm}, {"r", j.hinge.r / kMm}, {"b", j.hinge.b / kMm}};
   } else {
-    out["cone_deg"] = {j.cone.phi_f  / kDeg, j.cone.phi_a  / kDeg};
+    out["cone_deg"] = {j.cone.phi_f / kDeg, j.cone.phi_a / kDeg};
     if (j.ball.feasible)
       out["design_mm"] = {{"r", j.ball.r / kMm},
                           {"h", j.ball.h / kMm},
@@ -72,12 +74,13 @@ Json joint_json(const Joint& j) {
   if (j.centre_from_rig_m >= 0) out["centre_from_rig_mm"] = j.centre_from_rig_m / kMm;
   if (j.motion) {
     const MotionEstimate& e = *j.motion;
-    out["motion"] = {{"clips", e.clips},
-                     {"frames", e.frames},
-                     {"max_angle_deg", e.max_angle_rad  / kDeg},
-                     {"centre_moved_mm", j.motion_centre_shift_m >= 0 ? Json(j.motion_centre_shift_m / kMm)
-                                                                      : Json(nullptr)},
-                     {"centre_rms_mm", e.centre_rms_m / kMm}};
+    out["motion"] = {
+        {"clips", e.clips},
+        {"frames", e.frames},
+        {"max_angle_deg", e.max_angle_rad / kDeg},
+        {"centre_moved_mm",
+         j.motion_centre_shift_m >= 0 ? Json(j.motion_centre_shift_m / kMm) : Json(nullptr)},
+        {"centre_rms_mm", e.centre_rms_m / kMm}};
   }
   if (!j.notes.empty()) out["notes"] = j.notes;
   return out;
@@ -91,8 +94,16 @@ Json result_json(const ArticulateArgs& args, const ArticulateResult& r) {
   const VerificationReport& v = r.verification;
   Json replay = Json::array();
   for (const ClipReplay& c : v.clips)
-    replay.push_back({{"clip", c.clip}, {"frames", c.frames}, {"collision_free", c.collision_free},
-                      {"share", c.share}, {"colliding_pairs", c.colliding_pairs}});
+    replay.push_back({{"clip", c.clip},
+                      {"frames", c.frames},
+                      {"collision_free", c.collision_free},
+                      {"share", c.share},
+                      {"colliding_pairs", c.colliding_pairs}});
+  Json narrowed = Json::array();
+  for (const RangeNarrowing& n : v.narrowed) {
+    const Joint& j = r.joints[static_cast<std::size_t>(n.joint)];
+    narrowed.push_back({{"links", {j.parent_name, j.child_name}}, {"factor", n.factor}});
+  }
   return Json{{"input", args.input},
               {"output", args.output},
               {"joints", joints},
@@ -108,9 +119,11 @@ Json result_json(const ArticulateArgs& args, const ArticulateResult& r) {
               {"verification",
                {{"ok", v.ok},
                 {"parts_valid", v.parts_valid},
-                {"min_part_distance_mm", v.min_part_distance_m >= 0 ? Json(v.min_part_distance_m / kMm)
-                                                                    : Json(nullptr)},
+                {"min_part_distance_mm",
+                 v.min_part_distance_m >= 0 ? Json(v.min_part_distance_m / kMm) : Json(nullptr)},
                 {"replay_share", v.replay_share},
+                {"replay_share_designed", v.replay_share_designed},
+                {"narrowed", narrowed},
                 {"clips", replay},
                 {"problems", v.problems}}},
               {"stage_s", stages},
@@ -129,6 +142,7 @@ void print_text(const ArticulateArgs& args, const ArticulateResult& r) {
     fmt::print("  {} -> {}: {} ({}), r_max {:.2f} mm, smallest section {:.1f} mm^2\n",
                j.parent_name, j.child_name, to_string(j.type), to_string(j.source), j.r_max / kMm,
                j.min_area / (kMm * kMm));
+    for (const std::string& note : j.notes) fmt::print("    {}\n", note);
   }
   fmt::print("{} joints, {} parts, {} collisions resolved, {:.1f} s\n", r.accepted(),
              r.parts.size(), r.collisions.collisions_resolved, r.time_s);
@@ -211,8 +225,7 @@ void add_articulate_commands(CLI::App& app, const GlobalOptions& global, int* ex
   c->add_option("--height-mm", args->height_mm, "Printed height (rest pose, along +Y)")
       ->required()
       ->check(kPositive);
-  c->add_option("--printer", args->printer,
-                "Printer profile: polyjet, sla, fdm, or a YAML file")
+  c->add_option("--printer", args->printer, "Printer profile: polyjet, sla, fdm, or a YAML file")
       ->capture_default_str();
   c->add_option("--joints", args->joints, "Per-joint overrides (YAML: type, frame angle, ranges)");
   c->add_flag("--no-animation", args->no_animation,

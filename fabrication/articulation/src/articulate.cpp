@@ -56,14 +56,15 @@ void redesign(const ArticulateOptions& o, Joint* j) {
 void apply_motion(const ArticulateOptions& o, const LinkMotion& motion,
                   const std::vector<Clip>& clips,
                   const std::function<double(const Eigen::Vector3d&)>& depth, Joint* j) {
-  const MotionEstimate e =
-      estimate_joint_motion(motion, j->parent_link, j->child_link, j->n, j->centre, clips, o.motion);
+  const MotionEstimate e = estimate_joint_motion(motion, j->parent_link, j->child_link, j->n,
+                                                 j->centre, clips, o.motion);
   j->motion = e;
   if (e.type == MotionJointType::kFused) {
     j->excluded = true;
-    j->reason = fmt::format("fused: the links never turn more than {:.1f} deg relative to each "
-                            "other in the clips",
-                            o.motion.fused_below_rad / kDeg);
+    j->reason = fmt::format(
+        "fused: the links never turn more than {:.1f} deg relative to each "
+        "other in the clips",
+        o.motion.fused_below_rad / kDeg);
     return;
   }
   j->source = JointSource::kAnimation;
@@ -84,9 +85,9 @@ void apply_motion(const ArticulateOptions& o, const LinkMotion& motion,
     j->centre = e.centre;
     j->r_max = j->r_max_initial = d;
   } else {
-    j->notes.push_back(fmt::format(
-        "motion centre kept off: only {:.2f} mm inside (medial r_max {:.2f} mm)", d / kMm,
-        j->r_max / kMm));
+    j->notes.push_back(
+        fmt::format("motion centre kept off: only {:.2f} mm inside (medial r_max {:.2f} mm)",
+                    d / kMm, j->r_max / kMm));
   }
 }
 
@@ -136,7 +137,8 @@ Result<ArticulateResult> articulate(const SkinnedCharacter& c, const ArticulateO
 
   std::vector<int> parents, depths;
   std::vector<std::string> names;
-  for (const Bone& b : c.bones) parents.push_back(b.parent), depths.push_back(b.depth), names.push_back(b.name);
+  for (const Bone& b : c.bones)
+    parents.push_back(b.parent), depths.push_back(b.depth), names.push_back(b.name);
   HC_ASSIGN_OR_RETURN(const std::vector<Transition> transitions,
                       find_transitions(F.mesh, F.weights, parents, depths, o.transitions));
   HC_ASSIGN_OR_RETURN(const geometry::MeshDistance distance, geometry::MeshDistance::build(F.mesh));
@@ -158,14 +160,15 @@ Result<ArticulateResult> articulate(const SkinnedCharacter& c, const ArticulateO
     j.centre_from_rig_m = -1;
     if (t.degenerate) {
       j.excluded = true;
-      j.reason =
-          static_cast<int>(t.points.size()) < o.transitions.min_points
-              ? fmt::format("degenerate transition: {} transition points (fewer than {}): the "
-                            "links barely touch",
-                            t.points.size(), o.transitions.min_points)
-              : fmt::format("degenerate transition: lambda3/lambda2 = {:.2f} > f = {:.2f} ({} "
-                            "points): the links are not joined around a loop",
-                            t.ratio, o.transitions.degenerate_ratio, t.points.size());
+      j.reason = static_cast<int>(t.points.size()) < o.transitions.min_points
+                     ? fmt::format(
+                           "degenerate transition: {} transition points (fewer than {}): the "
+                           "links barely touch",
+                           t.points.size(), o.transitions.min_points)
+                     : fmt::format(
+                           "degenerate transition: lambda3/lambda2 = {:.2f} > f = {:.2f} ({} "
+                           "points): the links are not joined around a loop",
+                           t.ratio, o.transitions.degenerate_ratio, t.points.size());
     } else {
       const MedialCentre m =
           medial_centre(t.centre, t.normal, 1.5 * std::sqrt(2 * t.lambdas(2)), depth);
@@ -188,22 +191,24 @@ Result<ArticulateResult> articulate(const SkinnedCharacter& c, const ArticulateO
       if (!j.excluded) apply_motion(o, *motion, c.clips, depth, &j);
   }
   for (Joint& j : out.joints) {
-    if (const JointOverride* u = o.overrides.find(j.parent_name, j.child_name)) apply_override(*u, &j);
+    if (const JointOverride* u = o.overrides.find(j.parent_name, j.child_name))
+      apply_override(*u, &j);
     if (j.excluded) continue;
     const Eigen::Vector3d rig = c.bones[static_cast<std::size_t>(j.child_link)].rest_origin_m;
     j.centre_from_rig_m = (j.centre - rig).norm();
     redesign(o, &j);
     if (!j.feasible()) {
       j.excluded = true;
-      j.reason = fmt::format("too thin: r_max {:.2f} mm leaves no room for a {} with {:.2f} mm "
-                             "clearance",
-                             j.r_max / kMm, to_string(j.type), o.printer.clearance_m / kMm);
+      j.reason = fmt::format(
+          "too thin: r_max {:.2f} mm leaves no room for a {} with {:.2f} mm "
+          "clearance",
+          j.r_max / kMm, to_string(j.type), o.printer.clearance_m / kMm);
     } else if (j.min_area < o.printer.min_area_m2) {
       j.excluded = true;
-      j.reason = fmt::format("too weak: best smallest cross-section {:.2f} mm^2 < A_min {:.2f} "
-                             "mm^2 (r_max {:.2f} mm)",
-                             j.min_area / (kMm * kMm), o.printer.min_area_m2 / (kMm * kMm),
-                             j.r_max / kMm);
+      j.reason = fmt::format(
+          "too weak: best smallest cross-section {:.2f} mm^2 < A_min {:.2f} "
+          "mm^2 (r_max {:.2f} mm)",
+          j.min_area / (kMm * kMm), o.printer.min_area_m2 / (kMm * kMm), j.r_max / kMm);
     }
   }
   exclude_unseparable_joints(contacts, static_cast<int>(c.bones.size()), &out.joints);
@@ -219,9 +224,8 @@ Result<ArticulateResult> articulate(const SkinnedCharacter& c, const ArticulateO
   co.clearance_m = o.printer.clearance_m;
   co.min_area_m2 = o.printer.min_area_m2;
   co.progress = o.progress;
-  HC_RETURN_IF_ERROR(resolve_collisions(&out.joints, &hulls,
-                                        [&](Joint* j) { redesign(o, j); }, build, co,
-                                        &out.collisions));
+  HC_RETURN_IF_ERROR(resolve_collisions(
+      &out.joints, &hulls, [&](Joint* j) { redesign(o, j); }, build, co, &out.collisions));
   exclude_unseparable_joints(contacts, static_cast<int>(c.bones.size()), &out.joints);
   watch.lap("collisions");
 
@@ -247,6 +251,14 @@ Result<ArticulateResult> articulate(const SkinnedCharacter& c, const ArticulateO
                         verify_articulation(out.parts, out.joints, hulls,
                                             motion ? &*motion : nullptr, c.clips, v, o.progress));
     watch.lap("verification");
+    // The usable ranges the clip replay narrowed are the joints' ranges from now on.
+    for (const RangeNarrowing& n : out.verification.narrowed) {
+      Joint& j = out.joints[static_cast<std::size_t>(n.joint)];
+      narrow_range(j, n.factor);
+      j.notes.push_back(fmt::format(
+          "range narrowed to {:.0f} % of the design so that the clips replay without collision",
+          100 * n.factor));
+    }
   }
   out.time_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   return out;

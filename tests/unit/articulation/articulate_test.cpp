@@ -12,8 +12,8 @@
 #include <vector>
 
 #include "fabrication/articulation/skinned_io.h"
-#include "synthetic_skinned.h"
 #include "sanitizer.h"
+#include "synthetic_skinned.h"
 
 namespace hc::articulation {
 namespace {
@@ -59,8 +59,8 @@ TEST(Articulate, SyntheticArmAnimatedAboutAnAxisBecomesAHingeWithThatAxis) {
   HC_SKIP_WHEN_SANITIZED("CGAL's exact booleans take minutes");
   SkinnedCharacter c = arm();
   const Eigen::Vector3d axis = Eigen::Vector3d(1, 0, 0.3).normalized();
-  c.clips.push_back(testing::rotation_clip(c, 1, axis, Eigen::Vector3d(0, 0.045, 0), 15 * kDeg,
-                                           30 * kDeg, 31));
+  c.clips.push_back(
+      testing::rotation_clip(c, 1, axis, Eigen::Vector3d(0, 0.045, 0), 15 * kDeg, 30 * kDeg, 31));
   ArticulateOptions o;
   Result<ArticulateResult> r = articulate(c, o);
   ASSERT_TRUE(r.ok()) << r.status().to_string();
@@ -74,6 +74,7 @@ TEST(Articulate, SyntheticArmAnimatedAboutAnAxisBecomesAHingeWithThatAxis) {
   expect_valid(*r, o.printer.clearance_m);
   ASSERT_EQ(r->verification.clips.size(), 1u);
   EXPECT_GE(r->verification.clips[0].share, 0.95);
+  EXPECT_TRUE(r->verification.narrowed.empty());  // a clean replay keeps the designed range
 }
 
 TEST(Articulate, SyntheticArmWithoutClipsGetsADefaultBall) {
@@ -124,6 +125,38 @@ TEST(Articulate, ThreeBoneLimbGivesTwoJointsAlongTheChainAndThreeParts) {
   expect_valid(*r, o.printer.clearance_m);
 }
 
+TEST(Articulate, AClipThatCollidesNarrowsTheRangeUntilItReplaysCleanly) {
+  HC_SKIP_WHEN_SANITIZED("CGAL's exact booleans take minutes");
+  // The three-bone tube folded at its first joint from 0 to 160 degrees: at the top of the swing
+  // the child side meets the parent (81 % of the frames replay cleanly at the designed range),
+  // so the replay narrows that joint's range until the clip replays at >= 95 %.
+  testing::SyntheticLimb limb;
+  limb.bones = 3;
+  limb.length_m = 0.135;
+  limb.segments = 24;
+  limb.rings = 37;
+  SkinnedCharacter c = testing::skinned_limb(limb);
+  c.clips.push_back(testing::rotation_clip(c, 1, Eigen::Vector3d::UnitX(),
+                                           Eigen::Vector3d(0, 0.045, 0), 80 * kDeg, 80 * kDeg, 31));
+  ArticulateOptions o;
+  Result<ArticulateResult> r = articulate(c, o);
+  ASSERT_TRUE(r.ok()) << r.status().to_string();
+  const VerificationReport& v = r->verification;
+  EXPECT_LT(v.replay_share_designed, o.verification.replay_required_share);
+  EXPECT_GE(v.replay_share, o.verification.replay_required_share);
+  ASSERT_EQ(v.narrowed.size(), 1u);
+  EXPECT_GT(v.narrowed[0].factor, 0.1);
+  EXPECT_LT(v.narrowed[0].factor, 1.0);
+  const Joint& j = r->joints[static_cast<std::size_t>(v.narrowed[0].joint)];
+  EXPECT_FALSE(j.excluded);
+  EXPECT_EQ(j.type, JointType::kHinge);
+  // The result carries the narrowed range: less than the clip's 160 degrees.
+  EXPECT_LT(j.swing.forward, 160 * kDeg * v.narrowed[0].factor + 1e-9);
+  ASSERT_FALSE(j.notes.empty());
+  EXPECT_NE(j.notes.back().find("range narrowed"), std::string::npos) << j.notes.back();
+  for (const std::string& p : v.problems) EXPECT_EQ(p.find("clip replay"), std::string::npos) << p;
+}
+
 TEST(Articulate, UserOverridesTurnTheJointIntoAHinge) {
   HC_SKIP_WHEN_SANITIZED("CGAL's exact booleans take minutes");
   const SkinnedCharacter c = arm();
@@ -143,8 +176,8 @@ TEST(Articulate, UserOverridesTurnTheJointIntoAHinge) {
 }
 
 TEST(Articulate, OverridesAndProfilesRejectBadYamlWithFileAndLine) {
-  Result<JointOverrides> u = parse_joint_overrides(
-      "joints:\n  - child: a\n    type: socket\n", "joints.yaml");
+  Result<JointOverrides> u =
+      parse_joint_overrides("joints:\n  - child: a\n    type: socket\n", "joints.yaml");
   ASSERT_FALSE(u.ok());
   EXPECT_NE(u.status().message().find("joints.yaml:3"), std::string::npos) << u.status().message();
   Result<PrinterProfile> p = parse_printer_profile("base: fdm\nclearance_mm: -1\n", "p.yaml");

@@ -8,8 +8,8 @@
 #include <string>
 
 #include "cli_run.h"
-#include "test_data.h"
 #include "sanitizer.h"
+#include "test_data.h"
 
 namespace hc::testing {
 namespace {
@@ -19,9 +19,9 @@ TEST(ArticulateCli, RiggedSimpleGivesTwoPartsAndTheJsonContract) {
   ScratchDir dir;
   const auto out = dir / "simple.3mf";
   const auto stl = dir / "simple.stl";
-  const CliRun r = hardcopy("articulate " + shared_data("skinned/RiggedSimple.glb").string() +
-                            " --height-mm 80 -o " + out.string() + " --stl " + stl.string() +
-                            " --json");
+  const CliRun r =
+      hardcopy("articulate " + shared_data("skinned/RiggedSimple.glb").string() +
+               " --height-mm 80 -o " + out.string() + " --stl " + stl.string() + " --json");
   ASSERT_EQ(r.exit_code, 0) << r.out;
   const auto j = nlohmann::json::parse(r.out);
   for (const char* key : {"joints", "parts", "collisions_resolved", "time_s", "verification"})
@@ -29,8 +29,8 @@ TEST(ArticulateCli, RiggedSimpleGivesTwoPartsAndTheJsonContract) {
   EXPECT_EQ(j["parts"], 2);  // RiggedSimple: 2 joints in the rig, one transition between them
   ASSERT_EQ(j["joints"].size(), 1u);
   const auto& joint = j["joints"][0];
-  for (const char* key : {"links", "type", "centre_mm", "axis", "r_max_mm", "min_area_mm2",
-                          "source", "excluded"})
+  for (const char* key :
+       {"links", "type", "centre_mm", "axis", "r_max_mm", "min_area_mm2", "source", "excluded"})
     EXPECT_TRUE(joint.contains(key)) << key;
   EXPECT_EQ(joint["excluded"], false);
   EXPECT_GE(joint["min_area_mm2"].get<double>(), 10.0);  // A_min of the PolyJet profile
@@ -62,20 +62,18 @@ TEST(ArticulateCli, NoSurvivingJointExitsOneAndWritesNothing) {
 TEST(ArticulateCli, UnreadableInputExitsTwoAndWritesNothing) {
   ScratchDir dir;
   const auto out = (dir / "x.3mf").string();
-  EXPECT_EQ(hardcopy("articulate " + (dir / "missing.glb").string() +
-                     " --height-mm 80 -o " + out)
+  EXPECT_EQ(hardcopy("articulate " + (dir / "missing.glb").string() + " --height-mm 80 -o " + out)
                 .exit_code,
             2);
   std::ofstream(dir / "garbage.glb") << "glTF\x02 not really";
-  EXPECT_EQ(hardcopy("articulate " + (dir / "garbage.glb").string() +
-                     " --height-mm 80 -o " + out)
+  EXPECT_EQ(hardcopy("articulate " + (dir / "garbage.glb").string() + " --height-mm 80 -o " + out)
                 .exit_code,
             2);
   // A mesh with no skin (Debian assimp-testmodels' textured box) is not a character.
   const std::string box = "/usr/share/assimp/models/glTF2/BoxTextured-glTF-Binary/BoxTextured.glb";
   if (std::filesystem::exists(box)) {
-    const CliRun r = run_command((bin_dir() / "hardcopy").string() + " --quiet articulate " +
-                                 box + " --height-mm 80 -o " + out + " 2>&1");
+    const CliRun r = run_command((bin_dir() / "hardcopy").string() + " --quiet articulate " + box +
+                                 " --height-mm 80 -o " + out + " 2>&1");
     EXPECT_EQ(r.exit_code, 2);
     EXPECT_NE(r.out.find("no skin"), std::string::npos) << r.out;
   }
