@@ -29,6 +29,16 @@ SkinnedCharacter arm() {
   return testing::skinned_limb(limb);
 }
 
+// The arm's tube with a third bone: 135 mm long, joints at y = 45 and 90 mm.
+SkinnedCharacter three_bone_limb() {
+  testing::SyntheticLimb limb;
+  limb.bones = 3;
+  limb.length_m = 0.135;
+  limb.segments = 24;
+  limb.rings = 37;
+  return testing::skinned_limb(limb);
+}
+
 void expect_valid(const ArticulateResult& r, double clearance) {
   const VerificationReport& v = r.verification;
   EXPECT_TRUE(v.parts_valid);
@@ -96,14 +106,8 @@ TEST(Articulate, SyntheticArmWithoutClipsGetsADefaultBall) {
 
 TEST(Articulate, ThreeBoneLimbGivesTwoJointsAlongTheChainAndThreeParts) {
   HC_SKIP_WHEN_SANITIZED("CGAL's exact booleans take minutes");
-  // The arm's tube with a third bone: joints at y = 45 and 90 mm, each between a bone and its
-  // child in the rig, so the parts form a tree of three.
-  testing::SyntheticLimb limb;
-  limb.bones = 3;
-  limb.length_m = 0.135;
-  limb.segments = 24;
-  limb.rings = 37;
-  const SkinnedCharacter c = testing::skinned_limb(limb);
+  // Both joints are between a bone and its child in the rig, so the parts form a tree of three.
+  const SkinnedCharacter c = three_bone_limb();
   ArticulateOptions o;
   Result<ArticulateResult> r = articulate(c, o);
   ASSERT_TRUE(r.ok()) << r.status().to_string();
@@ -130,12 +134,7 @@ TEST(Articulate, AClipThatCollidesNarrowsTheRangeUntilItReplaysCleanly) {
   // The three-bone tube folded at its first joint from 0 to 160 degrees: at the top of the swing
   // the child side meets the parent (81 % of the frames replay cleanly at the designed range),
   // so the replay narrows that joint's range until the clip replays at >= 95 %.
-  testing::SyntheticLimb limb;
-  limb.bones = 3;
-  limb.length_m = 0.135;
-  limb.segments = 24;
-  limb.rings = 37;
-  SkinnedCharacter c = testing::skinned_limb(limb);
+  SkinnedCharacter c = three_bone_limb();
   c.clips.push_back(testing::rotation_clip(c, 1, Eigen::Vector3d::UnitX(),
                                            Eigen::Vector3d(0, 0.045, 0), 80 * kDeg, 80 * kDeg, 31));
   ArticulateOptions o;
