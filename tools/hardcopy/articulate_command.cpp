@@ -102,7 +102,10 @@ Json result_json(const ArticulateArgs& args, const ArticulateResult& r) {
   Json narrowed = Json::array();
   for (const RangeNarrowing& n : v.narrowed) {
     const Joint& j = r.joints[static_cast<std::size_t>(n.joint)];
-    narrowed.push_back({{"links", {j.parent_name, j.child_name}}, {"factor", n.factor}});
+    narrowed.push_back({{"links", {j.parent_name, j.child_name}},
+                        {"factor", n.factor},
+                        {"by_sweep", n.by_sweep},
+                        {"by_replay", n.by_replay}});
   }
   return Json{{"input", args.input},
               {"output", args.output},
@@ -122,7 +125,7 @@ Json result_json(const ArticulateArgs& args, const ArticulateResult& r) {
                 {"min_part_distance_mm",
                  v.min_part_distance_m >= 0 ? Json(v.min_part_distance_m / kMm) : Json(nullptr)},
                 {"replay_share", v.replay_share},
-                {"replay_share_designed", v.replay_share_designed},
+                {"replay_share_before_narrowing", v.replay_share_before_narrowing},
                 {"narrowed", narrowed},
                 {"clips", replay},
                 {"problems", v.problems}}},

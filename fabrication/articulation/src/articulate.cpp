@@ -251,13 +251,15 @@ Result<ArticulateResult> articulate(const SkinnedCharacter& c, const ArticulateO
                         verify_articulation(out.parts, out.joints, hulls,
                                             motion ? &*motion : nullptr, c.clips, v, o.progress));
     watch.lap("verification");
-    // The usable ranges the clip replay narrowed are the joints' ranges from now on.
+    // The usable ranges the checks narrowed are the joints' ranges from now on.
     for (const RangeNarrowing& n : out.verification.narrowed) {
       Joint& j = out.joints[static_cast<std::size_t>(n.joint)];
       narrow_range(j, n.factor);
       j.notes.push_back(fmt::format(
-          "range narrowed to {:.0f} % of the design so that the clips replay without collision",
-          100 * n.factor));
+          "range narrowed to {:.0f} % of the design so that {} without collision", 100 * n.factor,
+          n.by_sweep && n.by_replay ? "its range poses and the clips replay"
+          : n.by_sweep              ? "its range poses sweep"
+                                    : "the clips replay"));
     }
   }
   out.time_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();

@@ -188,6 +188,23 @@ Status check_clearance(const std::vector<CarvedPart>& parts,
 }
 
 // What one joint's check needs besides the joint.
+// The largest factor in [0.1, 1] of a range for which `clean(factor)` holds, assuming that less
+// range collides less: 0.1 first (false: nothing found), then three halvings of [0.1, 1), so to
+// about 0.1. `clean(1)` is known to be false.
+template <typename Clean>
+Result<bool> largest_clean_factor(Clean clean, double* factor) {
+  HC_ASSIGN_OR_RETURN(bool ok, clean(0.1));
+  if (!ok) return false;
+  double good = 0.1, bad = 1.0;
+  for (int k = 0; k < 3; ++k) {
+    const double mid = 0.5 * (good + bad);
+    HC_ASSIGN_OR_RETURN(ok, clean(mid));
+    (ok ? good : bad) = mid;
+  }
+  *factor = good;
+  return true;
+}
+
 struct JointCheckInput {
   const std::vector<CarvedPart>& parts;
   const std::vector<std::unique_ptr<geometry::MeshProximity>>& trees;
@@ -229,17 +246,36 @@ Result<JointCheck> check_joint(const JointCheckInput& in, const Joint& j, std::s
     const Sets sets = split_sets(in.parts, in.tree.moving[i]);
     HC_ASSIGN_OR_RETURN(const geometry::MeshProximity fixed,
                         geometry::MeshProximity::build(sets.fixed));
-    for (const Eigen::Matrix3d& rot : sweep_rotations(j, in.options.sweep_step_rad)) {
-      const Eigen::Isometry3d pose = rotation_about(j.centre, rot);
-      ++jc.sweep_poses;
-      HC_ASSIGN_OR_RETURN(const auto hits, fixed.crossings(moved(sets.moving, pose), 64));
-      std::vector<Eigen::Vector3d> bumps;
-      for (const auto& b : in.hulls[i].bumps) bumps.push_back(pose * b);
-      if (real_crossing(hits, bumps, in.bump_zone)) ++jc.sweep_collisions;
+    // Range poses of `range` whose moving side crosses the rest, and how many poses there were.
+    const auto sweep = [&](const Joint& range) -> Result<std::pair<int, int>> {
+      int poses = 0, collisions = 0;
+      for (const Eigen::Matrix3d& rot : sweep_rotations(range, in.options.sweep_step_rad)) {
+        const Eigen::Isometry3d pose = rotation_about(range.centre, rot);
+        ++poses;
+        HC_ASSIGN_OR_RETURN(const auto hits, fixed.crossings(moved(sets.moving, pose), 64));
+        std::vector<Eigen::Vector3d> bumps;
+        for (const auto& b : in.hulls[i].bumps) bumps.push_back(pose * b);
+        if (real_crossing(hits, bumps, in.bump_zone)) ++collisions;
+      }
+      return std::pair{poses, collisions};
+    };
+    HC_ASSIGN_OR_RETURN(const auto designed, sweep(j));
+    std::tie(jc.sweep_poses, jc.sweep_collisions) = designed;
+    bool narrowed = false;
+    if (jc.sweep_collisions > 0 && in.options.narrow_ranges) {
+      const auto clean = [&](double factor) -> Result<bool> {
+        Joint range = j;
+        narrow_range(range, factor);
+        HC_ASSIGN_OR_RETURN(const auto s, sweep(range));
+        return s.second == 0;
+      };
+      HC_ASSIGN_OR_RETURN(narrowed, largest_clean_factor(clean, &jc.range_factor));
     }
-    if (jc.sweep_collisions > 0)
-      problems->push_back(fmt::format("joint {} -> {}: {} of {} range poses collide", j.parent_name,
-                                      j.child_name, jc.sweep_collisions, jc.sweep_poses));
+    if (jc.sweep_collisions > 0 && !narrowed)
+      problems->push_back(
+          fmt::format("joint {} -> {}: {} of {} range poses collide{}", j.parent_name, j.child_name,
+                      jc.sweep_collisions, jc.sweep_poses,
+                      in.options.narrow_ranges ? ", also at 10 % of the range" : ""));
   }
   return jc;
 }
@@ -369,27 +405,17 @@ Result<bool> narrow_for_replay(const ReplayInput& in, const std::vector<Joint>& 
       }
   if (culprits.empty()) return false;
   const double required = in.options.replay_required_share;
-  std::vector<ClipReplay> clips;
-  const auto try_factor = [&](double factor) -> Result<bool> {
+  std::vector<ClipReplay> clips, good_clips;
+  const auto clean = [&](double factor) -> Result<bool> {
     std::vector<Joint> narrowed = joints;
     for (std::size_t i : culprits) narrow_range(narrowed[i], factor);
     HC_ASSIGN_OR_RETURN(const double share, replay_clips(in, narrowed, &clips));
+    if (share >= required) good_clips = clips;
     return share >= required;
   };
-  HC_ASSIGN_OR_RETURN(bool ok, try_factor(0.1));
-  if (!ok) return true;
-  double good = 0.1, bad = 1.0;
-  std::vector<ClipReplay> good_clips = clips;
-  for (int k = 0; k < 3; ++k) {
-    const double mid = 0.5 * (good + bad);
-    HC_ASSIGN_OR_RETURN(ok, try_factor(mid));
-    if (ok) {
-      good = mid;
-      good_clips = clips;
-    } else {
-      bad = mid;
-    }
-  }
+  double factor = 1.0;
+  HC_ASSIGN_OR_RETURN(const bool found, largest_clean_factor(clean, &factor));
+  if (!found) return true;
   r->clips = std::move(good_clips);
   int frames = 0, free = 0;
   for (const ClipReplay& c : r->clips) {
@@ -397,7 +423,13 @@ Result<bool> narrow_for_replay(const ReplayInput& in, const std::vector<Joint>& 
     free += c.collision_free;
   }
   r->replay_share = frames > 0 ? double(free) / frames : 1.0;
-  for (std::size_t i : culprits) r->narrowed.push_back({static_cast<int>(i), good});
+  for (std::size_t i : culprits) {
+    auto it = std::find_if(r->narrowed.begin(), r->narrowed.end(),
+                           [&](const RangeNarrowing& n) { return n.joint == static_cast<int>(i); });
+    if (it == r->narrowed.end()) it = r->narrowed.insert(r->narrowed.end(), {static_cast<int>(i)});
+    it->factor *= factor;
+    it->by_replay = true;
+  }
   return true;
 }
 
@@ -437,14 +469,21 @@ Result<VerificationReport> verify_articulation(
     HC_ASSIGN_OR_RETURN(JointCheck jc, check_joint(in, joints[i], i, &r.problems));
     r.joints.push_back(jc);
   }
+  // The clips replay on the ranges the sweeps left.
+  std::vector<Joint> usable = joints;
+  for (const JointCheck& jc : r.joints) {
+    if (jc.range_factor >= 1.0) continue;
+    narrow_range(usable[static_cast<std::size_t>(jc.joint)], jc.range_factor);
+    r.narrowed.push_back({jc.joint, jc.range_factor, true, false});
+  }
 
   bool narrowing_tried = false;
   if (options.replay && motion != nullptr) {
     const ReplayInput replay{parts, hulls, tree, *motion, clips, options, bump_zone};
-    HC_ASSIGN_OR_RETURN(r.replay_share, replay_clips(replay, joints, &r.clips));
-    r.replay_share_designed = r.replay_share;
+    HC_ASSIGN_OR_RETURN(r.replay_share, replay_clips(replay, usable, &r.clips));
+    r.replay_share_before_narrowing = r.replay_share;
     if (r.replay_share < options.replay_required_share && options.narrow_ranges) {
-      HC_ASSIGN_OR_RETURN(narrowing_tried, narrow_for_replay(replay, joints, &r));
+      HC_ASSIGN_OR_RETURN(narrowing_tried, narrow_for_replay(replay, usable, &r));
     }
   }
   if (r.replay_share < options.replay_required_share)

@@ -27,8 +27,9 @@ struct VerificationOptions {
   bool replay = true;
   int max_frames_per_clip = 24;
   double replay_required_share = 0.95;
-  // Below the required share, narrow the ranges of the joints between the colliding parts to the
-  // largest fraction (at least 10 %, found to about 10 %) at which the clips replay cleanly.
+  // A joint whose range poses collide keeps the largest fraction of its range (at least 10 %,
+  // found to about 10 %) that sweeps cleanly; below the required replay share, the joints between
+  // the colliding parts are narrowed likewise until the clips replay cleanly.
   bool narrow_ranges = true;
   double clearance_m = 0.3e-3;
 };
@@ -46,8 +47,9 @@ struct JointCheck {
   int parent_part = -1, child_part = -1;
   bool ball_held = true;  // ball joints: pulled along n it hits the lip
   int sweep_poses = 0;
-  int sweep_collisions = 0;  // poses where the moving side crossed another part
-  std::string sweep_note;    // which part it hit first
+  int sweep_collisions = 0;   // poses where the moving side crossed another part (designed range)
+  std::string sweep_note;     // which part it hit first
+  double range_factor = 1.0;  // of the designed range that sweeps without collision
 };
 
 struct ClipReplay {
@@ -59,11 +61,13 @@ struct ClipReplay {
   std::vector<std::pair<int, int>> colliding_parts;  // the same pairs as part indices
 };
 
-// A joint whose usable range the clip replay narrowed: `factor` of its designed range (hinge
-// swings, ball cone) keeps the replay at the required share.
+// A joint whose usable range the checks narrowed: `factor` of its designed range (hinge swings,
+// ball cone) sweeps without collision and keeps the clip replay at the required share.
 struct RangeNarrowing {
   int joint = -1;
   double factor = 1.0;
+  bool by_sweep = false;   // its own range poses collided
+  bool by_replay = false;  // the clips collided
 };
 
 struct VerificationReport {
@@ -74,8 +78,8 @@ struct VerificationReport {
   std::string closest_parts;
   std::vector<JointCheck> joints;
   std::vector<ClipReplay> clips;
-  double replay_share = 1.0;           // over all clips (after any narrowing)
-  double replay_share_designed = 1.0;  // with the designed ranges
+  double replay_share = 1.0;                   // over all clips (after any narrowing)
+  double replay_share_before_narrowing = 1.0;  // on the ranges the sweeps left
   std::vector<RangeNarrowing> narrowed;
   bool ok = false;
   std::vector<std::string> problems;
