@@ -43,6 +43,40 @@ TEST(ArticulateCli, RiggedSimpleGivesTwoPartsAndTheJsonContract) {
   EXPECT_EQ(c["self_intersecting_pairs"], 0);
 }
 
+TEST(ArticulateCli, EverySharedCharacterIsPosableOrSaysWhyNot) {
+  HC_SKIP_WHEN_SANITIZED("CGAL's exact booleans take minutes");
+  // The bar for ../shared/data/skinned/ (every glTF there, 100 mm tall): exit 0 with
+  // parts that pass every check, or exit 1 with nothing written and a reason for every joint.
+  // At this stop: RiggedSimple and Fox posable (one joint each), RiggedFigure, CesiumMan and
+  // simple_skin too small for the PolyJet joints at 100 mm.
+  ScratchDir dir;
+  int characters = 0;
+  for (const auto& entry : std::filesystem::directory_iterator(shared_data("skinned"))) {
+    const std::string ext = entry.path().extension().string();
+    if (ext != ".glb" && ext != ".gltf") continue;
+    ++characters;
+    const auto out = dir / (entry.path().stem().string() + ".3mf");
+    const CliRun r = hardcopy("articulate " + entry.path().string() + " --height-mm 100 -o " +
+                              out.string() + " --json");
+    SCOPED_TRACE(entry.path().filename().string());
+    ASSERT_TRUE(r.exit_code == 0 || r.exit_code == 1) << r.exit_code << r.out;
+    const auto j = nlohmann::json::parse(r.out);
+    if (r.exit_code == 0) {
+      EXPECT_TRUE(j["verification"]["ok"].get<bool>()) << j["verification"].dump();
+      EXPECT_EQ(j["parts"].get<int>(), j["accepted"].get<int>() + 1);
+      EXPECT_TRUE(std::filesystem::exists(out));
+    } else {
+      EXPECT_EQ(j["accepted"], 0);
+      EXPECT_FALSE(std::filesystem::exists(out));
+      for (const auto& joint : j["joints"]) {
+        EXPECT_EQ(joint["excluded"], true) << joint.dump();
+        EXPECT_FALSE(joint.value("reason", std::string()).empty()) << joint.dump();
+      }
+    }
+  }
+  EXPECT_GE(characters, 5);  // MANIFEST.md lists five
+}
+
 TEST(ArticulateCli, NoSurvivingJointExitsOneAndWritesNothing) {
   // RiggedSimple printed 8 mm tall: its one joint's r_max (0.4 mm) leaves no room for a joint
   // with the PolyJet profile's 0.3 mm clearance, so nothing is posable.
