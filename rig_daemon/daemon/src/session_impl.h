@@ -60,7 +60,7 @@ inline std::string num(double v) {
   return s.str();
 }
 
-inline rec::Bytes to_bytes(const std::string& s) { return rec::Bytes(s.begin(), s.end()); }
+using rec::to_bytes;
 
 inline Json pose_json(const dev::ArmPose& p) {
   return Json{{"x_m", p.x_m}, {"y_m", p.y_m}, {"z_m", p.z_m}, {"yaw_rad", p.yaw_rad}};

@@ -19,8 +19,6 @@ namespace {
 
 namespace sim = devices::sim;
 
-recording::Bytes to_bytes(const std::string& s) { return recording::Bytes(s.begin(), s.end()); }
-
 // The board and its poses a calibration plan shows on the specimen's top face.
 sim::BoardShow board_show(const CalibrationPlan& p, const sim::Specimen& spec) {
   sim::BoardShow show;
@@ -84,7 +82,7 @@ class SimulatedWorldSource final : public SessionSource {
       std::erase_if(r.cameras, [&](const auto& c) { return !cameras_.count(c.first); });
       recorder_->write(channel_, t.host_ns, t.host_ns,
                        static_cast<std::uint32_t>(t.trigger_index.value_or(0)),
-                       to_bytes(session::to_json(r)));
+                       recording::to_bytes(session::to_json(r)));
     });
   }
 

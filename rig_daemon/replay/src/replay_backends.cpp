@@ -86,6 +86,11 @@ struct ReplayBinding {
                        " stream of device '" + source + "'");
     return {};
   }
+  // The bound stream's mean message rate over the session.
+  double rate_hz() const {
+    const double span_s = (session->end_ns() - session->start_ns()) * 1e-9;
+    return span_s > 0.0 ? stream->messages / span_s : 0.0;
+  }
 };
 
 // Items of one stream in log-time order, read in slices as the replay clock reaches them.
@@ -310,8 +315,7 @@ class ReplayFsr final : public Fsr {
   Status on_configure(ConfigNode node) override {
     read_calibration(node, &cal_);
     HC_RETURN_IF_ERROR(binding_.bind(context(), node, kKind));
-    const double span_s = (binding_.session->end_ns() - binding_.session->start_ns()) * 1e-9;
-    rate_hz_ = span_s > 0.0 ? binding_.stream->messages / span_s : 0.0;
+    rate_hz_ = binding_.rate_hz();
     return {};
   }
   Status on_activate() override {
@@ -344,8 +348,7 @@ class ReplayForceTorque final : public ForceTorque {
     node.optional("counts_per_n", cal_.counts_per_n, Bounds::positive());
     node.optional("counts_per_nm", cal_.counts_per_nm, Bounds::positive());
     HC_RETURN_IF_ERROR(binding_.bind(context(), node, kKind));
-    const double span_s = (binding_.session->end_ns() - binding_.session->start_ns()) * 1e-9;
-    rate_hz_ = span_s > 0.0 ? binding_.stream->messages / span_s : 0.0;
+    rate_hz_ = binding_.rate_hz();
     return {};
   }
   Status on_activate() override {

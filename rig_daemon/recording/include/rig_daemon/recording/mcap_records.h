@@ -30,6 +30,9 @@ using Bytes = std::vector<std::uint8_t>;
 using ByteSpan = std::span<const std::uint8_t>;
 using StringMap = std::map<std::string, std::string>;
 
+// A text payload (JSON) as message bytes.
+inline Bytes to_bytes(std::string_view s) { return Bytes(s.begin(), s.end()); }
+
 // "\x89MCAP0\r\n": at the start and at the end of every MCAP file.
 inline constexpr std::array<std::uint8_t, 8> kMagic = {0x89, 'M', 'C', 'A', 'P', '0', '\r', '\n'};
 // Opcode (1) + content length (8).
