@@ -10,12 +10,19 @@
 #include <CGAL/Regular_triangulation_3.h>
 #include <CGAL/Regular_triangulation_cell_base_3.h>
 #include <CGAL/Regular_triangulation_vertex_base_3.h>
+#include <CGAL/Spatial_lock_grid_3.h>
+#include <CGAL/Triangulation_cell_base_with_info_3.h>
 #include <CGAL/Triangulation_vertex_base_with_info_3.h>
 #include <fmt/format.h>
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+#include <tbb/parallel_sort.h>
 
+#include <algorithm>
 #include <cmath>
 #include <limits>
-#include <unordered_map>
+#include <memory>
+#include <numeric>
 #include <utility>
 
 #include "cgal_support.h"
@@ -30,11 +37,19 @@ using K = CGAL::Exact_predicates_inexact_constructions_kernel;
 using Gt = K;
 using Vb0 = CGAL::Regular_triangulation_vertex_base_3<Gt>;
 using Vb = CGAL::Triangulation_vertex_base_with_info_3<int, Gt, Vb0>;
-// Hidden points are not kept: the medial-ball code only needs which points became vertices.
-using Cb = CGAL::Regular_triangulation_cell_base_3<Gt, CGAL::Triangulation_cell_base_3<Gt>,
-                                                   CGAL::Discard_hidden_points>;
-using Tds = CGAL::Triangulation_data_structure_3<Vb, Cb>;
-using Rt = CGAL::Regular_triangulation_3<Gt, Tds>;
+// Hidden points are not kept: the medial-ball code only needs which points became vertices. The
+// cell's info is its index in the output.
+using Cb0 = CGAL::Regular_triangulation_cell_base_3<Gt, CGAL::Triangulation_cell_base_3<Gt>,
+                                                    CGAL::Discard_hidden_points>;
+using Cb = CGAL::Triangulation_cell_base_with_info_3<int, Gt, Cb0>;
+// The concurrent data structure: large inputs are inserted in parallel (TBB) under a grid of
+// spatial locks; without a lock grid the same type inserts sequentially.
+using Tds = CGAL::Triangulation_data_structure_3<Vb, Cb, CGAL::Parallel_tag>;
+using Lock = CGAL::Spatial_lock_grid_3<CGAL::Tag_priority_blocking>;
+using Rt = CGAL::Regular_triangulation_3<Gt, Tds, Lock>;
+// Below this many points the parallel insertion's set-up costs more than it saves.
+constexpr std::size_t kParallelFrom = 20'000;
+bool parallel(std::size_t points) { return points >= kParallelFrom; }
 using WPoint = Gt::Weighted_point_3;
 using BPoint = Gt::Point_3;
 
@@ -52,19 +67,51 @@ Status check_input(std::span<const Eigen::Vector3d> points, std::span<const doub
   return {};
 }
 
-Result<Rt> build(std::span<const Eigen::Vector3d> points, std::span<const double> weights,
-                 std::string_view what) {
+Status build_rt(std::span<const Eigen::Vector3d> points, std::span<const double> weights,
+                std::string_view what, Rt* rt) {
   HC_RETURN_IF_ERROR(check_input(points, weights, what));
   std::vector<std::pair<WPoint, int>> input;
   input.reserve(points.size());
+  CGAL::Bbox_3 box;
   for (std::size_t i = 0; i < points.size(); ++i) {
     const double w = weights.empty() ? 0.0 : weights[i];
     input.emplace_back(WPoint(BPoint(points[i].x(), points[i].y(), points[i].z()), w),
                        static_cast<int>(i));
+    box += input.back().first.bbox();
   }
-  // The range insertion sorts the points along a Hilbert curve first (spatial_sort).
-  Rt rt(input.begin(), input.end());
-  return rt;
+  // The range insertion sorts the points along a Hilbert curve first (spatial_sort). The
+  // triangulation does not depend on the insertion order (the perturbation of degenerate
+  // predicates is symbolic), so the parallel insertion gives the same cells, in another order.
+  std::unique_ptr<Lock> lock;
+  if (parallel(points.size())) lock = std::make_unique<Lock>(box, 50);
+  rt->set_lock_data_structure(lock.get());
+  rt->insert(input.begin(), input.end());
+  rt->set_lock_data_structure(nullptr);
+  return {};
+}
+
+// An even permutation of a cell's corners that puts the smallest index first and, of the three
+// rotations of the rest, the smallest second: every cell gets one spelling whatever the insertion
+// order (an infinite cell, whose -1 is smallest, too).
+std::array<int, 4> canonical_order(const std::array<int, 4>& v) {
+  static constexpr int kEven[12][4] = {{0, 1, 2, 3}, {0, 2, 3, 1}, {0, 3, 1, 2}, {1, 0, 3, 2},
+                                       {1, 2, 0, 3}, {1, 3, 2, 0}, {2, 0, 1, 3}, {2, 1, 3, 0},
+                                       {2, 3, 0, 1}, {3, 0, 2, 1}, {3, 1, 0, 2}, {3, 2, 1, 0}};
+  std::array<int, 4> best{0, 1, 2, 3};
+  bool first = true;
+  for (const auto& p : kEven) {
+    const std::array<int, 4> cand{v[static_cast<std::size_t>(p[0])],
+                                  v[static_cast<std::size_t>(p[1])],
+                                  v[static_cast<std::size_t>(p[2])],
+                                  v[static_cast<std::size_t>(p[3])]};
+    const std::array<int, 4> cur{v[static_cast<std::size_t>(best[0])],
+                                 v[static_cast<std::size_t>(best[1])],
+                                 v[static_cast<std::size_t>(best[2])],
+                                 v[static_cast<std::size_t>(best[3])]};
+    if (first || cand < cur) best = {p[0], p[1], p[2], p[3]};
+    first = false;
+  }
+  return best;
 }
 
 }  // namespace
@@ -73,7 +120,8 @@ Result<Triangulation3> triangulate_3d(std::span<const Eigen::Vector3d> points,
                                       std::span<const double> weights) {
   constexpr std::string_view kWhat = "triangulate_3d";
   return guarded<Triangulation3>(kWhat, [&]() -> Result<Triangulation3> {
-    HC_ASSIGN_OR_RETURN(Rt rt, build(points, weights, kWhat));
+    Rt rt;
+    HC_RETURN_IF_ERROR(build_rt(points, weights, kWhat, &rt));
     if (rt.dimension() < 3) {
       return invalid_argument(fmt::format("{}: the {} points span only {} dimension(s); 3 needed",
                                           kWhat, points.size(),
@@ -84,34 +132,61 @@ Result<Triangulation3> triangulate_3d(std::span<const Eigen::Vector3d> points,
     for (auto v = rt.finite_vertices_begin(); v != rt.finite_vertices_end(); ++v) {
       out.is_vertex[static_cast<std::size_t>(v->info())] = 1;
     }
-    std::unordered_map<Rt::Cell_handle, int> index;
-    index.reserve(rt.number_of_cells());
-    int n = 0;
-    for (auto c = rt.all_cells_begin(); c != rt.all_cells_end(); ++c) index.emplace(c, n++);
-    out.cells.resize(static_cast<std::size_t>(n));
-    out.neighbours.resize(static_cast<std::size_t>(n));
-    out.centres.assign(static_cast<std::size_t>(n),
-                       Eigen::Vector3d::Constant(std::numeric_limits<double>::quiet_NaN()));
-    out.squared_radii.assign(static_cast<std::size_t>(n), std::numeric_limits<double>::quiet_NaN());
+    // After a parallel insertion the cells are put in a canonical order (sorted by their
+    // canonical corner spelling), so the output is the same whichever order the threads left them
+    // in; a sequential insertion's order is deterministic already and is kept (the crust's
+    // triangulation of each power face starts at its first cell, so reordering changes output).
+    struct Entry {
+      std::array<int, 4> corners;  // canonical spelling (after a parallel insertion)
+      std::array<int, 4> perm;     // corners[k] = CGAL's vertex perm[k]
+      Rt::Cell_handle cell;
+    };
+    const bool sort = parallel(points.size());
+    std::vector<Entry> cells;
+    cells.reserve(rt.number_of_cells());
+    for (auto c = rt.all_cells_begin(); c != rt.all_cells_end(); ++c) {
+      std::array<int, 4> v;
+      for (int k = 0; k < 4; ++k) {
+        const auto h = c->vertex(k);
+        v[static_cast<std::size_t>(k)] = rt.is_infinite(h) ? -1 : h->info();
+      }
+      const std::array<int, 4> p =
+          sort ? canonical_order(v) : std::array<int, 4>{0, 1, 2, 3};
+      cells.push_back({{v[static_cast<std::size_t>(p[0])], v[static_cast<std::size_t>(p[1])],
+                        v[static_cast<std::size_t>(p[2])], v[static_cast<std::size_t>(p[3])]},
+                       p,
+                       c});
+    }
+    if (sort) {
+      tbb::parallel_sort(cells.begin(), cells.end(),
+                         [](const Entry& a, const Entry& b) { return a.corners < b.corners; });
+    }
+    const std::size_t n = cells.size();
+    for (std::size_t i = 0; i < n; ++i) cells[i].cell->info() = static_cast<int>(i);
+    out.cells.resize(n);
+    out.neighbours.resize(n);
+    out.centres.assign(n, Eigen::Vector3d::Constant(std::numeric_limits<double>::quiet_NaN()));
+    out.squared_radii.assign(n, std::numeric_limits<double>::quiet_NaN());
     const auto centre = rt.geom_traits().construct_weighted_circumcenter_3_object();
     const auto radius =
         rt.geom_traits().compute_squared_radius_smallest_orthogonal_sphere_3_object();
-    for (auto c = rt.all_cells_begin(); c != rt.all_cells_end(); ++c) {
-      const auto i = static_cast<std::size_t>(index.at(c));
-      for (int k = 0; k < 4; ++k) {
-        const auto v = c->vertex(k);
-        out.cells[i][static_cast<std::size_t>(k)] = rt.is_infinite(v) ? -1 : v->info();
-        out.neighbours[i][static_cast<std::size_t>(k)] = index.at(c->neighbor(k));
+    // Cell by cell, independent: in parallel.
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n), [&](const auto& range) {
+      for (std::size_t i = range.begin(); i != range.end(); ++i) {
+        const Entry& e = cells[i];
+        const Rt::Cell_handle c = e.cell;
+        out.cells[i] = e.corners;
+        for (std::size_t k = 0; k < 4; ++k) out.neighbours[i][k] = c->neighbor(e.perm[k])->info();
+        if (e.corners[0] < 0) continue;  // infinite
+        const WPoint& p = c->vertex(e.perm[0])->point();
+        const WPoint& q = c->vertex(e.perm[1])->point();
+        const WPoint& r = c->vertex(e.perm[2])->point();
+        const WPoint& s = c->vertex(e.perm[3])->point();
+        const BPoint o = centre(p, q, r, s);
+        out.centres[i] = Eigen::Vector3d(o.x(), o.y(), o.z());
+        out.squared_radii[i] = CGAL::to_double(radius(p, q, r, s));
       }
-      if (rt.is_infinite(c)) continue;
-      const WPoint& p = c->vertex(0)->point();
-      const WPoint& q = c->vertex(1)->point();
-      const WPoint& r = c->vertex(2)->point();
-      const WPoint& s = c->vertex(3)->point();
-      const BPoint o = centre(p, q, r, s);
-      out.centres[i] = Eigen::Vector3d(o.x(), o.y(), o.z());
-      out.squared_radii[i] = CGAL::to_double(radius(p, q, r, s));
-    }
+    });
     return out;
   });
 }
@@ -125,7 +200,8 @@ Result<PowerQuery> nearest_power_3d(std::span<const Eigen::Vector3d> centres,
       return invalid_argument(
           fmt::format("{}: {} balls with {} weights", kWhat, centres.size(), weights.size()));
     }
-    HC_ASSIGN_OR_RETURN(Rt rt, build(centres, weights, kWhat));
+    Rt rt;
+    HC_RETURN_IF_ERROR(build_rt(centres, weights, kWhat, &rt));
     PowerQuery out;
     out.power.resize(queries.size());
     out.ball.resize(queries.size());

@@ -1,0 +1,143 @@
+// hardcopy_geometry: the regular triangulation (checked by its defining local property, in exact
+// arithmetic's sign with a tolerance) and the k-d tree (against brute force).
+#include <Eigen/Geometry>
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <random>
+#include <set>
+
+#include "geometry/nearest_point.h"
+#include "geometry/regular_triangulation.h"
+
+namespace hc::geometry {
+namespace {
+
+struct Weighted {
+  std::vector<Eigen::Vector3d> points;
+  std::vector<double> weights;
+};
+
+// n balls with centres uniform in the unit cube and radii up to r.
+Weighted random_balls(std::size_t n, double r, std::uint64_t seed) {
+  std::mt19937_64 rng(seed);
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  Weighted w;
+  for (std::size_t i = 0; i < n; ++i) {
+    w.points.emplace_back(u(rng), u(rng), u(rng));
+    const double ri = r * u(rng);
+    w.weights.push_back(ri * ri);
+  }
+  return w;
+}
+
+// The cells as sets of input indices (the infinite vertex -1), for comparing two triangulations
+// whatever their cell order and corner spelling.
+std::set<std::array<int, 4>> cell_sets(const Triangulation3& t) {
+  std::set<std::array<int, 4>> out;
+  for (auto c : t.cells) {
+    std::sort(c.begin(), c.end());
+    out.insert(c);
+  }
+  return out;
+}
+
+// Above the size where the insertion runs in parallel (regular_triangulation_3.cpp): every finite
+// cell positively oriented; neighbours mutual; the triangulation regular, checked locally (for a
+// triangulation of the convex hull, every facet being locally regular makes it regular: the
+// opposite corner across each facet has power >= 0 to the cell's orthogonal sphere); the same
+// output on a second run and for the input in reverse order (indices mapped back).
+TEST(RegularTriangulation3, ParallelInsertionIsRegularAndDeterministic) {
+  constexpr std::size_t kN = 30'000;
+  const Weighted w = random_balls(kN, 0.01, 7);
+  auto t = triangulate_3d(w.points, w.weights);
+  ASSERT_TRUE(t.ok()) << t.status().message();
+  const std::size_t cells = t->cells.size();
+  ASSERT_GT(cells, 5 * kN);
+  std::size_t hidden = 0;
+  for (const auto v : t->is_vertex) hidden += v == 0;
+  for (std::size_t c = 0; c < cells; ++c) {
+    for (std::size_t k = 0; k < 4; ++k) {
+      const int nb = t->neighbours[c][k];
+      ASSERT_GE(nb, 0);
+      const auto& back = t->neighbours[static_cast<std::size_t>(nb)];
+      ASSERT_NE(std::find(back.begin(), back.end(), static_cast<int>(c)), back.end());
+    }
+    if (!t->is_finite(static_cast<int>(c))) continue;
+    const auto& v = t->cells[c];
+    const Eigen::Vector3d& a = w.points[static_cast<std::size_t>(v[0])];
+    const double orient = (w.points[static_cast<std::size_t>(v[1])] - a)
+                              .dot((w.points[static_cast<std::size_t>(v[2])] - a)
+                                       .cross(w.points[static_cast<std::size_t>(v[3])] - a));
+    ASSERT_GT(orient, 0.0) << "cell " << c;
+    // The orthogonal sphere: |o - p|^2 - w_p = squared_radius for its four corners (rounding:
+    // relative to its size; flat cells at the hull have huge ones).
+    const Eigen::Vector3d& o = t->centres[c];
+    const double tol = 1e-9 * (1.0 + std::abs(t->squared_radii[c]));
+    for (const int p : v) {
+      EXPECT_NEAR((o - w.points[static_cast<std::size_t>(p)]).squaredNorm() -
+                      w.weights[static_cast<std::size_t>(p)],
+                  t->squared_radii[c], tol);
+    }
+    for (std::size_t k = 0; k < 4; ++k) {
+      const auto& nbc = t->cells[static_cast<std::size_t>(t->neighbours[c][k])];
+      for (const int q : nbc) {
+        if (q < 0 || std::find(v.begin(), v.end(), q) != v.end()) continue;
+        const double power = (o - w.points[static_cast<std::size_t>(q)]).squaredNorm() -
+                             w.weights[static_cast<std::size_t>(q)] - t->squared_radii[c];
+        EXPECT_GT(power, -tol) << "cell " << c << " corner " << q;
+      }
+    }
+  }
+  EXPECT_LT(hidden, kN / 10);
+
+  auto again = triangulate_3d(w.points, w.weights);
+  ASSERT_TRUE(again.ok());
+  EXPECT_EQ(again->cells, t->cells);
+  EXPECT_EQ(again->neighbours, t->neighbours);
+  EXPECT_EQ(again->is_vertex, t->is_vertex);
+
+  Weighted reversed;
+  for (std::size_t i = kN; i-- > 0;) {
+    reversed.points.push_back(w.points[i]);
+    reversed.weights.push_back(w.weights[i]);
+  }
+  auto r = triangulate_3d(reversed.points, reversed.weights);
+  ASSERT_TRUE(r.ok());
+  for (auto& c : r->cells) {
+    for (int& i : c) i = i < 0 ? -1 : static_cast<int>(kN) - 1 - i;
+  }
+  EXPECT_EQ(cell_sets(*r), cell_sets(*t));
+}
+
+TEST(NearestPoint3, MatchesBruteForce) {
+  const Weighted sites = random_balls(2'000, 0.0, 3);
+  const Weighted queries = random_balls(500, 0.0, 4);
+  auto tree = NearestPoint3::build(sites.points);
+  ASSERT_TRUE(tree.ok()) << tree.status().message();
+  auto q = tree->query(queries.points);
+  ASSERT_TRUE(q.ok()) << q.status().message();
+  for (std::size_t i = 0; i < queries.points.size(); ++i) {
+    double best = std::numeric_limits<double>::infinity();
+    for (const auto& s : sites.points) best = std::min(best, (s - queries.points[i]).norm());
+    EXPECT_DOUBLE_EQ(q->distance[i], best) << "query " << i;
+    EXPECT_DOUBLE_EQ(
+        (sites.points[static_cast<std::size_t>(q->index[i])] - queries.points[i]).norm(), best);
+  }
+}
+
+TEST(NearestPoint3, EmptyAndNonFiniteInputAreErrors) {
+  EXPECT_EQ(NearestPoint3::build({}).status().code(), StatusCode::kInvalidArgument);
+  const std::vector<Eigen::Vector3d> bad{{0, 0, 0}, {std::nan(""), 0, 0}};
+  EXPECT_EQ(NearestPoint3::build(bad).status().code(), StatusCode::kInvalidArgument);
+  const std::vector<Eigen::Vector3d> one{{0, 0, 0}};
+  auto tree = NearestPoint3::build(one);
+  ASSERT_TRUE(tree.ok());
+  const std::vector<Eigen::Vector3d> inf{{std::numeric_limits<double>::infinity(), 0, 0}};
+  EXPECT_EQ(tree->query(inf).status().code(), StatusCode::kInvalidArgument);
+}
+
+}  // namespace
+}  // namespace hc::geometry
