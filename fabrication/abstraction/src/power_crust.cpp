@@ -36,9 +36,8 @@ Status check_labels(const Balls<D>& balls) {
 
 // Cells sharing a power vertex exactly (the samples the crust interpolates) get double positions
 // a few ulps apart. Vertices closer than kMergeFraction of the bounding-box diagonal are merged
-// (a hash grid of that cell size, union-find over the 27 neighbour cells); triangles that lose a
-// corner go, and pairs of opposite triangles on the same three vertices (a collapsed sliver
-// pocket) cancel.
+// (union-find over a hash grid); triangles that lose a corner go, and pairs of opposite triangles
+// on the same three vertices (a collapsed sliver pocket) cancel.
 constexpr double kMergeFraction = 1e-13;
 constexpr int kSnapAttempts = 4;
 
@@ -47,98 +46,114 @@ TriangleMesh merge_close_vertices(const std::vector<Eigen::Vector3d>& vertices,
   Eigen::AlignedBox3d box;
   for (const auto& v : vertices) box.extend(v);
   const double h = std::max(kMergeFraction * box.diagonal().norm(), 1e-300);
-  const auto cell = [&](const Eigen::Vector3d& p) -> std::array<std::int64_t, 3> {
-    return {static_cast<std::int64_t>(std::floor(p.x() / h)),
-            static_cast<std::int64_t>(std::floor(p.y() / h)),
-            static_cast<std::int64_t>(std::floor(p.z() / h))};
+  // A grid of cells 2h wide in an open-addressed table (cell -> first vertex, then `next`): a
+  // vertex within h of p lies in p's cell or, along each axis, in the neighbour on the side of
+  // the cell's middle that p is on, so 8 cells are visited.
+  const double cell_size = 2.0 * h;
+  const std::size_t n = vertices.size();
+  std::size_t slots = 16;
+  while (slots < 2 * n) slots *= 2;
+  struct Slot {
+    std::array<std::int64_t, 3> cell;
+    int head = -1;
   };
-  struct Hash {
-    std::size_t operator()(const std::array<std::int64_t, 3>& c) const {
-      // Unsigned: the products wrap (a signed overflow is undefined).
-      return static_cast<std::size_t>(static_cast<std::uint64_t>(c[0]) * 73856093ULL ^
-                                      static_cast<std::uint64_t>(c[1]) * 19349663ULL ^
-                                      static_cast<std::uint64_t>(c[2]) * 83492791ULL);
-    }
+  std::vector<Slot> table(slots);
+  std::vector<int> next(n, -1);
+  const auto slot_of = [&](const std::array<std::int64_t, 3>& c) -> Slot& {
+    // Unsigned: the products wrap (a signed overflow is undefined).
+    std::size_t i = static_cast<std::size_t>(static_cast<std::uint64_t>(c[0]) * 73856093ULL ^
+                                             static_cast<std::uint64_t>(c[1]) * 19349663ULL ^
+                                             static_cast<std::uint64_t>(c[2]) * 83492791ULL) &
+                    (slots - 1);
+    while (table[i].head >= 0 && table[i].cell != c) i = (i + 1) & (slots - 1);
+    return table[i];
   };
-  std::unordered_map<std::array<std::int64_t, 3>, std::vector<int>, Hash> grid;
-  std::vector<int> parent(vertices.size());
-  for (std::size_t i = 0; i < vertices.size(); ++i) parent[i] = static_cast<int>(i);
+  std::vector<int> parent(n);
+  for (std::size_t i = 0; i < n; ++i) parent[i] = static_cast<int>(i);
   const auto find = [&](int x) {
     while (parent[static_cast<std::size_t>(x)] != x)
       x = parent[static_cast<std::size_t>(x)] =
           parent[static_cast<std::size_t>(parent[static_cast<std::size_t>(x)])];
     return x;
   };
-  for (std::size_t i = 0; i < vertices.size(); ++i) {
-    const auto c = cell(vertices[i]);
-    for (std::int64_t dx = -1; dx <= 1; ++dx)
-      for (std::int64_t dy = -1; dy <= 1; ++dy)
-        for (std::int64_t dz = -1; dz <= 1; ++dz) {
-          const auto it = grid.find({c[0] + dx, c[1] + dy, c[2] + dz});
-          if (it == grid.end()) continue;
-          for (const int j : it->second) {
-            if ((vertices[static_cast<std::size_t>(j)] - vertices[i]).norm() <= h) {
-              parent[static_cast<std::size_t>(find(static_cast<int>(i)))] = find(j);
-            }
-          }
+  for (std::size_t i = 0; i < n; ++i) {
+    const Eigen::Vector3d q = vertices[i] / cell_size;
+    std::array<std::int64_t, 3> c{};
+    std::array<std::int64_t, 3> side{};
+    for (int k = 0; k < 3; ++k) {
+      const double f = std::floor(q[k]);
+      c[static_cast<std::size_t>(k)] = static_cast<std::int64_t>(f);
+      side[static_cast<std::size_t>(k)] = q[k] - f < 0.5 ? -1 : 1;
+    }
+    for (int m = 0; m < 8; ++m) {
+      const std::array<std::int64_t, 3> nc{c[0] + ((m & 1) ? side[0] : 0),
+                                           c[1] + ((m & 2) ? side[1] : 0),
+                                           c[2] + ((m & 4) ? side[2] : 0)};
+      for (int j = slot_of(nc).head; j >= 0; j = next[static_cast<std::size_t>(j)]) {
+        if ((vertices[static_cast<std::size_t>(j)] - vertices[i]).norm() <= h) {
+          parent[static_cast<std::size_t>(find(static_cast<int>(i)))] = find(j);
         }
-    grid[c].push_back(static_cast<int>(i));
+      }
+    }
+    Slot& own = slot_of(c);
+    own.cell = c;
+    next[i] = own.head;
+    own.head = static_cast<int>(i);
   }
-  std::vector<int> index(vertices.size(), -1);
-  TriangleMesh mesh;
+  std::vector<int> index(n, -1);
   std::vector<Eigen::Vector3d> kept;
-  for (std::size_t i = 0; i < vertices.size(); ++i) {
+  for (std::size_t i = 0; i < n; ++i) {
     const auto r = static_cast<std::size_t>(find(static_cast<int>(i)));
     if (index[r] < 0) {
       index[r] = static_cast<int>(kept.size());
       kept.push_back(vertices[r]);
     }
   }
-  std::unordered_map<std::uint64_t, std::vector<std::size_t>> by_key;
+  // Triangles on the merged vertices; of those on the same three vertices (either orientation),
+  // pairs cancel in input order, so an odd group keeps its last one.
   std::vector<Eigen::Vector3i> tris;
+  std::vector<std::array<int, 3>> keys;
+  tris.reserve(triangles.size());
+  keys.reserve(triangles.size());
   for (const auto& t : triangles) {
     Eigen::Vector3i m;
     for (int k = 0; k < 3; ++k) m[k] = index[static_cast<std::size_t>(find(t[k]))];
     if (m[0] == m[1] || m[1] == m[2] || m[0] == m[2]) continue;
-    std::array<std::uint64_t, 3> s{static_cast<std::uint64_t>(m[0]),
-                                   static_cast<std::uint64_t>(m[1]),
-                                   static_cast<std::uint64_t>(m[2])};
-    std::sort(s.begin(), s.end());
-    const std::uint64_t key =
-        (s[0] * 0x9E3779B97F4A7C15ULL) ^ (s[1] * 0xC2B2AE3D27D4EB4FULL) ^ s[2];
-    bool cancelled = false;
-    auto& same = by_key[key];
-    for (auto it = same.begin(); it != same.end(); ++it) {
-      const Eigen::Vector3i& o = tris[*it];
-      const bool same_set =
-          (o.array() == m[0]).any() && (o.array() == m[1]).any() && (o.array() == m[2]).any();
-      if (!same_set || o[0] < 0) continue;
-      tris[*it] = Eigen::Vector3i(-1, -1, -1);  // opposite or repeated: both go (see above)
-      same.erase(it);
-      cancelled = true;
-      break;
-    }
-    if (cancelled) continue;
-    same.push_back(tris.size());
+    std::array<int, 3> key{m[0], m[1], m[2]};
+    std::sort(key.begin(), key.end());
     tris.push_back(m);
+    keys.push_back(key);
   }
-  // Only the vertices a triangle still uses.
+  std::vector<std::uint32_t> order(tris.size());
+  for (std::size_t i = 0; i < order.size(); ++i) order[i] = static_cast<std::uint32_t>(i);
+  std::sort(order.begin(), order.end(), [&](std::uint32_t a, std::uint32_t b) {
+    return keys[a] != keys[b] ? keys[a] < keys[b] : a < b;
+  });
+  std::vector<std::uint8_t> keep(tris.size(), 1);
+  for (std::size_t g = 0; g < order.size();) {
+    std::size_t e = g + 1;
+    while (e < order.size() && keys[order[e]] == keys[order[g]]) ++e;
+    for (std::size_t k = g; k + ((e - g) % 2) < e; ++k) keep[order[k]] = 0;
+    g = e;
+  }
+  // Only the vertices a kept triangle uses, in order of first use.
   std::vector<int> used(kept.size(), -1);
   std::vector<Eigen::Vector3d> out_vertices;
   std::vector<Eigen::Vector3i> out_triangles;
-  for (const auto& t : tris) {
-    if (t[0] < 0) continue;
+  for (std::size_t t = 0; t < tris.size(); ++t) {
+    if (!keep[t]) continue;
     Eigen::Vector3i u;
     for (int k = 0; k < 3; ++k) {
-      int& id = used[static_cast<std::size_t>(t[k])];
+      int& id = used[static_cast<std::size_t>(tris[t][k])];
       if (id < 0) {
         id = static_cast<int>(out_vertices.size());
-        out_vertices.push_back(kept[static_cast<std::size_t>(t[k])]);
+        out_vertices.push_back(kept[static_cast<std::size_t>(tris[t][k])]);
       }
       u[k] = id;
     }
     out_triangles.push_back(u);
   }
+  TriangleMesh mesh;
   mesh.vertices.resize(static_cast<Eigen::Index>(out_vertices.size()), 3);
   for (std::size_t i = 0; i < out_vertices.size(); ++i)
     mesh.vertices.row(static_cast<Eigen::Index>(i)) = out_vertices[i].transpose();
@@ -166,7 +181,12 @@ std::vector<double> power_weights(const Balls<D>& balls) {
 template std::vector<double> power_weights<2>(const Balls2&);
 template std::vector<double> power_weights<3>(const Balls3&);
 
-Result<std::vector<int>> power_face(const geometry::Triangulation3& rt, int cell, int a, int b) {
+namespace {
+
+// power_face into `ring` (cleared first); each cell it passes gets bit e set in done[cell] for
+// the local edge e (an index into kTetEdges) that a-b is there, when `done` is given.
+Status power_face_into(const geometry::Triangulation3& rt, int cell, int a, int b,
+                       std::vector<int>* ring, std::vector<std::uint8_t>* done) {
   // Circulate around a->b: from a cell (a, b, c, d) positively oriented to its neighbour across
   // (a, b, d), where (a, b, d, e) is again positive; the power vertices turn counter-clockwise
   // about b - a.
@@ -184,14 +204,25 @@ Result<std::vector<int>> power_face(const geometry::Triangulation3& rt, int cell
       d = start[static_cast<std::size_t>(e[2])];
     }
   }
-  std::vector<int> ring;
+  ring->clear();
   int cur = cell;
   do {
     if (!rt.is_finite(cur)) return internal_error("power crust: an unbounded power face");
-    ring.push_back(cur);
+    ring->push_back(cur);
     const auto& cc = rt.cells[static_cast<std::size_t>(cur)];
     int kc = 0;
     while (cc[static_cast<std::size_t>(kc)] != c) ++kc;
+    if (done) {
+      // The local edge of a-b in this cell: the one whose other two corners are c and d.
+      int kd = 0;
+      while (cc[static_cast<std::size_t>(kd)] != d) ++kd;
+      for (int e = 0; e < 6; ++e) {
+        if ((kTetEdges[e][2] == kc && kTetEdges[e][3] == kd) ||
+            (kTetEdges[e][2] == kd && kTetEdges[e][3] == kc)) {
+          (*done)[static_cast<std::size_t>(cur)] |= static_cast<std::uint8_t>(1U << e);
+        }
+      }
+    }
     const int nb = rt.neighbours[static_cast<std::size_t>(cur)][static_cast<std::size_t>(kc)];
     int e_new = -3;
     for (const int v : rt.cells[static_cast<std::size_t>(nb)]) {
@@ -200,8 +231,16 @@ Result<std::vector<int>> power_face(const geometry::Triangulation3& rt, int cell
     c = d;
     d = e_new;
     cur = nb;
-  } while (cur != cell && ring.size() <= rt.cells.size());
+  } while (cur != cell && ring->size() <= rt.cells.size());
   if (cur != cell) return internal_error("power crust: broken edge ring");
+  return {};
+}
+
+}  // namespace
+
+Result<std::vector<int>> power_face(const geometry::Triangulation3& rt, int cell, int a, int b) {
+  std::vector<int> ring;
+  HC_RETURN_IF_ERROR(power_face_into(rt, cell, a, b, &ring, nullptr));
   return ring;
 }
 
@@ -341,35 +380,45 @@ std::vector<Eigen::Vector3d> non_manifold_points(const TriangleMesh& m) {
 Result<TriangleMesh> crust_faces_3d(const geometry::Triangulation3& rt, const Balls3& balls,
                                     const std::vector<std::uint8_t>& no_snap) {
   const auto& interior = balls.interior;
+  // The crust vertex of each cell's power vertex, one per sample for those snapped to a sample.
   std::vector<int> vertex_of(rt.cells.size(), -1);
+  std::vector<int> vertex_of_sample(balls.samples.size(), -1);
   std::vector<Eigen::Vector3d> vertices;
   std::vector<Eigen::Vector3i> triangles;
-  std::unordered_set<std::uint64_t> done;
+  // done[c] bit e: the face of c's local edge e (kTetEdges) is made (from another cell of its
+  // ring).
+  std::vector<std::uint8_t> done(rt.cells.size(), 0);
+  std::vector<int> ring;
   for (std::size_t c0 = 0; c0 < rt.cells.size(); ++c0) {
     if (!rt.is_finite(static_cast<int>(c0))) continue;
     const auto& cell = rt.cells[c0];
-    for (const auto& e : kTetEdges) {
+    for (int k = 0; k < 6; ++k) {
+      const auto& e = kTetEdges[k];
       const int a = cell[static_cast<std::size_t>(e[0])];
       const int b = cell[static_cast<std::size_t>(e[1])];
       if (interior[static_cast<std::size_t>(a)] == interior[static_cast<std::size_t>(b)]) continue;
-      const auto lo = static_cast<std::uint32_t>(std::min(a, b));
-      const auto hi = static_cast<std::uint32_t>(std::max(a, b));
-      if (!done.insert((std::uint64_t{lo} << 32) | hi).second) continue;
-      HC_ASSIGN_OR_RETURN(std::vector<int> ring, power_face(rt, static_cast<int>(c0), a, b));
+      if (done[c0] & (1U << k)) continue;
+      HC_RETURN_IF_ERROR(power_face_into(rt, static_cast<int>(c0), a, b, &ring, &done));
       for (const int r : ring) {
-        if (vertex_of[static_cast<std::size_t>(r)] < 0) {
-          vertex_of[static_cast<std::size_t>(r)] = static_cast<int>(vertices.size());
-          const int s = shared_sample(rt, balls, static_cast<std::size_t>(r), no_snap);
+        int& v = vertex_of[static_cast<std::size_t>(r)];
+        if (v >= 0) continue;
+        const int s = shared_sample(rt, balls, static_cast<std::size_t>(r), no_snap);
+        int* at = s >= 0 ? &vertex_of_sample[static_cast<std::size_t>(s)] : &v;
+        if (*at < 0) {
+          *at = static_cast<int>(vertices.size());
           vertices.push_back(s >= 0 ? balls.samples[static_cast<std::size_t>(s)]
                                     : rt.centres[static_cast<std::size_t>(r)]);
         }
+        v = *at;
       }
-      // Outward = from the interior ball to the exterior one.
+      // Outward = from the interior ball to the exterior one. Triangles that snapping collapsed
+      // go here already.
       const bool forward = interior[static_cast<std::size_t>(a)] != 0;
       const int p0 = vertex_of[static_cast<std::size_t>(ring[0])];
-      for (std::size_t k = 1; k + 1 < ring.size(); ++k) {
-        const int p1 = vertex_of[static_cast<std::size_t>(ring[k])];
-        const int p2 = vertex_of[static_cast<std::size_t>(ring[k + 1])];
+      for (std::size_t j = 1; j + 1 < ring.size(); ++j) {
+        const int p1 = vertex_of[static_cast<std::size_t>(ring[j])];
+        const int p2 = vertex_of[static_cast<std::size_t>(ring[j + 1])];
+        if (p0 == p1 || p1 == p2 || p0 == p2) continue;
         triangles.push_back(forward ? Eigen::Vector3i(p0, p1, p2) : Eigen::Vector3i(p0, p2, p1));
       }
     }
@@ -384,10 +433,25 @@ Status check_crust(double max_deviation, TriangleMesh* mesh, CrustSummary* summa
     geometry::ResolveOptions ro;
     ro.max_deviation = max_deviation;
     std::vector<geometry::SelfIntersectionStep> steps;
-    const std::int64_t before = report.self_intersecting_pairs;
-    HC_RETURN_IF_ERROR(geometry::resolve_self_intersections(ro, mesh, &steps));
-    HC_ASSIGN_OR_RETURN(report, fabrication::check_mesh(*mesh, co));
-    summary->repaired_pairs = static_cast<std::size_t>(before - report.self_intersecting_pairs);
+    const fabrication::MeshCheckReport before = report;
+    TriangleMesh repaired = *mesh;
+    HC_RETURN_IF_ERROR(geometry::resolve_self_intersections(ro, &repaired, &steps));
+    HC_ASSIGN_OR_RETURN(report, fabrication::check_mesh(repaired, co));
+    // The crust's intersections are rounding slivers, so a repair moves the surface by at most
+    // max_deviation and the volume by at most that times the area. Autorefine, whose result need
+    // only lie on its input, can instead drop whole sheets (a knot's difference once kept 1,006
+    // of 444,254 triangles): such a repair is refused and the crust reported invalid.
+    const double change = std::abs(report.volume - before.volume);
+    if (change > max_deviation * before.area) {
+      return internal_error(fmt::format(
+          "power crust: repairing its {} intersecting pairs changed the volume by {:.3g} (from "
+          "{:.6g}), more than the {:.3g} a surface moved by {:.3g} can",
+          before.self_intersecting_pairs, change, before.volume, max_deviation * before.area,
+          max_deviation));
+    }
+    *mesh = std::move(repaired);
+    summary->repaired_pairs =
+        static_cast<std::size_t>(before.self_intersecting_pairs - report.self_intersecting_pairs);
   }
   summary->closed = report.closed;
   summary->manifold = report.manifold;

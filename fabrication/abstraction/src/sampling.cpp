@@ -13,6 +13,7 @@
 #include <unordered_map>
 
 #include "fabrication/abstraction/medial_balls.h"
+#include "geometry/nearest_point.h"
 #include "geometry/regular_triangulation.h"
 #include "geometry/triangulation_2d.h"
 #include "poisson.h"
@@ -90,20 +91,46 @@ double seconds_since(std::chrono::steady_clock::time_point t0) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
 }
 
-Result<std::vector<double>> nearest_distance(std::span<const Vec<2>> sites,
-                                             std::span<const Vec<2>> q) {
-  const std::vector<double> zero(sites.size(), 0.0);
-  HC_ASSIGN_OR_RETURN(geometry::PowerQuery2 pq, geometry::nearest_power_2d(sites, zero, q));
-  for (double& p : pq.power) p = std::sqrt(std::max(0.0, p));
-  return std::move(pq.power);
-}
-Result<std::vector<double>> nearest_distance(std::span<const Vec<3>> sites,
-                                             std::span<const Vec<3>> q) {
-  const std::vector<double> zero(sites.size(), 0.0);
-  HC_ASSIGN_OR_RETURN(geometry::PowerQuery pq, geometry::nearest_power_3d(sites, zero, q));
-  for (double& p : pq.power) p = std::sqrt(std::max(0.0, p));
-  return std::move(pq.power);
-}
+// Distance to the nearest of a fixed set of sites, queried once per split round: in 3-D by a k-d
+// tree built once; 2-D inputs are small enough to triangulate each round.
+template <int D>
+class NearestSite;
+
+template <>
+class NearestSite<2> {
+ public:
+  static Result<NearestSite> build(std::vector<Vec<2>> sites) {
+    NearestSite n;
+    n.sites_ = std::move(sites);
+    return n;
+  }
+  Result<std::vector<double>> distance(std::span<const Vec<2>> q) const {
+    const std::vector<double> zero(sites_.size(), 0.0);
+    HC_ASSIGN_OR_RETURN(geometry::PowerQuery2 pq, geometry::nearest_power_2d(sites_, zero, q));
+    for (double& p : pq.power) p = std::sqrt(std::max(0.0, p));
+    return std::move(pq.power);
+  }
+
+ private:
+  std::vector<Vec<2>> sites_;
+};
+
+template <>
+class NearestSite<3> {
+ public:
+  static Result<NearestSite> build(const std::vector<Vec<3>>& sites) {
+    HC_ASSIGN_OR_RETURN(geometry::NearestPoint3 tree, geometry::NearestPoint3::build(sites));
+    return NearestSite(std::move(tree));
+  }
+  Result<std::vector<double>> distance(std::span<const Vec<3>> q) const {
+    HC_ASSIGN_OR_RETURN(geometry::NearestQuery nq, tree_.query(q));
+    return std::move(nq.distance);
+  }
+
+ private:
+  explicit NearestSite(geometry::NearestPoint3 tree) : tree_(std::move(tree)) {}
+  geometry::NearestPoint3 tree_;
+};
 
 // The approximate medial axis of a uniform sampling: 2-D all Voronoi vertices, 3-D the poles.
 Result<std::vector<Vec<2>>> medial_points(std::vector<Vec<2>> pts, const Eigen::AlignedBox2d& box) {
@@ -174,9 +201,10 @@ Result<Samples<D>> sample(Elements<D> elements, std::vector<Vec<D>> corners,
   medial.insert(medial.end(), corners.begin(), corners.end());
   sum.medial_points = medial.size();
   const double r_min = sum.r_min, r_max = sum.r_max;
+  HC_ASSIGN_OR_RETURN(const NearestSite<D> nearest, NearestSite<D>::build(medial));
   const internal::RadiusField<D> field =
       [&](std::span<const Vec<D>> q) -> Result<std::vector<double>> {
-    HC_ASSIGN_OR_RETURN(std::vector<double> d, nearest_distance(medial, q));
+    HC_ASSIGN_OR_RETURN(std::vector<double> d, nearest.distance(q));
     for (double& r : d) r = std::clamp(r, r_min, r_max);
     return d;
   };

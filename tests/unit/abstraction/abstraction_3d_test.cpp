@@ -11,6 +11,7 @@
 #include "fabrication/abstraction/abstraction.h"
 #include "fabrication/abstraction/fidelity.h"
 #include "fabrication/abstraction/operations.h"
+#include "fabrication/abstraction/power_crust.h"
 #include "fabrication/printability/mesh_check.h"
 #include "geometry/alpha_wrap.h"
 #include "geometry/booleans.h"
@@ -62,6 +63,28 @@ TEST(PowerCrust3d, CubeKeepsItsCornersAndVolume) {
   auto h = hausdorff_3d(cube, *out);
   ASSERT_TRUE(h.ok());
   EXPECT_LT(h->symmetric(), 2 * r_min) << h->a_to_b << " " << h->b_to_a;
+}
+
+// check_crust repairs rounding slivers; a repair that changes the solid is refused. Two unit cubes
+// stored as one closed manifold mesh overlap in a 0.5 x 0.75 x 0.75 box: at a 1e-6 deviation
+// only autorefine removes their intersecting pairs, by uniting them, which takes away the overlap
+// (0.28125 of the 2.0 the two count), more than a surface moved by 1e-6 over their area (12) can.
+TEST(PowerCrust3d, ARepairThatChangesTheSolidIsRefused) {
+  const TriangleMesh a = box({0, 0, 0}, {1, 1, 1});
+  const TriangleMesh b = box({0.5, 0.25, 0.25}, {1.5, 1.25, 1.25});
+  TriangleMesh both;
+  both.vertices.resize(a.num_vertices() + b.num_vertices(), 3);
+  both.vertices << a.vertices, b.vertices;
+  both.triangles.resize(a.num_triangles() + b.num_triangles(), 3);
+  both.triangles << a.triangles,
+      (b.triangles.array() + static_cast<int>(a.num_vertices())).matrix();
+  TriangleMesh mesh = both;
+  CrustSummary sum;
+  const Status s = check_crust(1e-6, &mesh, &sum);
+  EXPECT_EQ(s.code(), StatusCode::kInternal);
+  EXPECT_NE(s.message().find("changed the volume by 0.281 (from 2)"), std::string::npos) << s.message();
+  EXPECT_EQ(mesh.vertices, both.vertices);  // left as it was
+  EXPECT_EQ(mesh.triangles, both.triangles);
 }
 
 TEST(Offset3d, SphereRadiusChangesByTheDistance) {
