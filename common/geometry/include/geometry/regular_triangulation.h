@@ -2,8 +2,10 @@
 // Voronoi and power diagrams (thesis Appendix B), by CGAL's Regular_triangulation_3 with exact
 // predicates. The power vertex of every cell (the orthocentre: the point of equal power to its
 // four weighted corners) is constructed in double, so cells that share a power vertex exactly may
-// get positions a few ulps apart (see regular_triangulation_3.cpp for why not exactly). The
-// medial-ball code of fabrication/abstraction walks this output; no CGAL type appears here.
+// get positions a few ulps apart (see regular_triangulation_3.cpp for why not exactly). Inputs of
+// 20,000 points or more are inserted in parallel (TBB); their cells are then sorted into a
+// canonical order, so the output is the same on every run. The medial-ball code of
+// fabrication/abstraction walks this output; no CGAL type appears here.
 #pragma once
 
 #include <Eigen/Core>
