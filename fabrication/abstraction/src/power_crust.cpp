@@ -166,11 +166,12 @@ TriangleMesh merge_close_vertices(const std::vector<Eigen::Vector3d>& vertices,
 }  // namespace
 
 template <int D>
-std::vector<double> power_weights(const Balls<D>& balls) {
+std::vector<double> power_weights(const Balls<D>& balls, std::uint64_t seed) {
   std::vector<double> w(balls.size());
   for (std::size_t i = 0; i < w.size(); ++i) {
-    // A fixed pseudo-random u in [0, 1) per ball (splitmix64 of its index).
-    std::uint64_t z = (static_cast<std::uint64_t>(i) + 1) * 0x9E3779B97F4A7C15ULL;
+    // A fixed pseudo-random u in [0, 1) per ball (splitmix64 of its index and the seed).
+    std::uint64_t z = (static_cast<std::uint64_t>(i) + 1 + seed * 0xD1B54A32D192ED03ULL) *
+                      0x9E3779B97F4A7C15ULL;
     z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ULL;
     z = (z ^ (z >> 27)) * 0x94D049BB133111EBULL;
     const double u = static_cast<double>((z ^ (z >> 31)) >> 11) * 0x1.0p-53;
@@ -178,8 +179,8 @@ std::vector<double> power_weights(const Balls<D>& balls) {
   }
   return w;
 }
-template std::vector<double> power_weights<2>(const Balls2&);
-template std::vector<double> power_weights<3>(const Balls3&);
+template std::vector<double> power_weights<2>(const Balls2&, std::uint64_t);
+template std::vector<double> power_weights<3>(const Balls3&, std::uint64_t);
 
 namespace {
 
@@ -466,22 +467,23 @@ Status check_crust(double max_deviation, TriangleMesh* mesh, CrustSummary* summa
   return {};
 }
 
-Result<TriangleMesh> power_crust_3d(const Balls3& balls, CrustSummary* summary) {
-  const auto t0 = std::chrono::steady_clock::now();
-  HC_RETURN_IF_ERROR(check_labels(balls));
-  const std::vector<double> w = power_weights(balls);
+namespace {
+
+// One reconstruction with the weights perturbed by `seed` (power_weights): the triangulation, the
+// crust with its snap retries, the checks.
+Result<TriangleMesh> crust_with_perturbation(const Balls3& balls, std::uint64_t seed,
+                                             CrustSummary* sum) {
+  const std::vector<double> w = power_weights(balls, seed);
   HC_ASSIGN_OR_RETURN(geometry::Triangulation3 rt, geometry::triangulate_3d(balls.centres, w));
-  CrustSummary sum;
-  sum.balls = balls.size();
-  for (const auto v : rt.is_vertex) sum.hidden_balls += v ? 0 : 1;
+  sum->hidden_balls = 0;
+  for (const auto v : rt.is_vertex) sum->hidden_balls += v ? 0 : 1;
   TriangleMesh mesh;
   std::vector<std::uint8_t> no_snap(balls.samples.size(), 0);
-  Status status;
   // Snapping can make the crust touch itself where two sheets pass through one sample (thin
   // parts, a boolean's contact curve): those samples are left unsnapped and the crust rebuilt.
   for (int attempt = 0; attempt < kSnapAttempts; ++attempt) {
     HC_ASSIGN_OR_RETURN(mesh, crust_faces_3d(rt, balls, no_snap));
-    sum.faces = static_cast<std::size_t>(mesh.num_triangles());
+    sum->faces = static_cast<std::size_t>(mesh.num_triangles());
     Eigen::AlignedBox3d box;
     for (Eigen::Index i = 0; i < mesh.num_vertices(); ++i)
       box.extend(mesh.vertices.row(i).transpose());
@@ -496,13 +498,37 @@ Result<TriangleMesh> power_crust_3d(const Balls3& balls, CrustSummary* summary) 
       }
     }
     if (added > 0 && attempt + 1 < kSnapAttempts) continue;
-    status = check_crust(1e-6 * box.diagonal().norm(), &mesh, &sum);
+    HC_RETURN_IF_ERROR(check_crust(1e-6 * box.diagonal().norm(), &mesh, sum));
     break;
   }
-  HC_RETURN_IF_ERROR(status);
-  sum.time_s = seconds_since(t0);
-  if (summary) *summary = sum;
   return mesh;
+}
+
+}  // namespace
+
+Result<TriangleMesh> power_crust_3d(const Balls3& balls, CrustSummary* summary) {
+  const auto t0 = std::chrono::steady_clock::now();
+  HC_RETURN_IF_ERROR(check_labels(balls));
+  CrustSummary sum;
+  sum.balls = balls.size();
+  // Which power faces meet at a sample, and so whether the snapped, rounded crust is a valid
+  // solid, depends on how the perturbation breaks the balls' degeneracy; where one perturbation
+  // leaves the crust touching itself another usually does not, so a failed crust is rebuilt with
+  // the next one (the first failure is what is reported if none succeeds).
+  Status first;
+  for (std::uint64_t seed = 0; seed < kPerturbations; ++seed) {
+    auto mesh = crust_with_perturbation(balls, seed, &sum);
+    sum.perturbations = static_cast<std::size_t>(seed) + 1;
+    if (mesh.ok()) {
+      sum.time_s = seconds_since(t0);
+      if (summary) *summary = sum;
+      return mesh;
+    }
+    if (mesh.status().code() != StatusCode::kInternal) return mesh.status();
+    if (seed == 0) first = mesh.status();
+  }
+  if (summary) *summary = sum;
+  return first.with_context(fmt::format("with each of {} perturbations", kPerturbations));
 }
 
 }  // namespace hc::abstraction

@@ -49,6 +49,7 @@ TEST(PowerCrust3d, CubeKeepsItsCornersAndVolume) {
   auto out = reconstruct_3d(cube, options_3d(r_min, 0.05), &sum);
   ASSERT_TRUE(out.ok()) << out.status().to_string();
   expect_printable(*out, "cube");
+  EXPECT_EQ(sum.crust.perturbations, 1U);  // valid with the first
   EXPECT_NEAR(signed_volume(*out), 1.0, 0.01);  // 1 %: the crust cuts edges by ~r_min
   // Every corner keeps a crust vertex within r_min (the corner is a sample; crust vertices
   // around it are power vertices of balls touching it).
@@ -63,6 +64,25 @@ TEST(PowerCrust3d, CubeKeepsItsCornersAndVolume) {
   auto h = hausdorff_3d(cube, *out);
   ASSERT_TRUE(h.ok());
   EXPECT_LT(h->symmetric(), 2 * r_min) << h->a_to_b << " " << h->b_to_a;
+}
+
+// The perturbations power_crust_3d retries with: each lowers every squared radius by less than
+// kWeightPerturbation of it, and two seeds give different weights.
+TEST(PowerCrust3d, PerturbationsStayWithinTheirBoundAndDiffer) {
+  Balls3 balls;
+  for (int i = 0; i < 100; ++i) balls.push_back(Eigen::Vector3d(i, 0, 0), 0.5 + 0.01 * i, i % 2);
+  const auto w0 = power_weights(balls, 0);
+  const auto w1 = power_weights(balls, 1);
+  int differ = 0;
+  for (std::size_t i = 0; i < balls.size(); ++i) {
+    const double r2 = balls.radii[i] * balls.radii[i];
+    for (const double w : {w0[i], w1[i]}) {
+      EXPECT_LE(w, r2);
+      EXPECT_GT(w, r2 * (1 - kWeightPerturbation));
+    }
+    differ += w0[i] != w1[i];
+  }
+  EXPECT_GT(differ, 90);
 }
 
 // check_crust repairs rounding slivers; a repair that changes the solid is refused. Two unit cubes

@@ -30,6 +30,7 @@ struct CrustSummary {
   bool manifold = false;
   std::int64_t self_intersecting_pairs = -1;  // after rounding; -1 not checked
   std::size_t repaired_pairs = 0;  // pairs removed by CGAL's repair (geometry/mesh_ops.h)
+  std::size_t perturbations = 0;   // 3-D: perturbations tried (power_weights seeds)
   double time_s = 0.0;
 };
 
@@ -40,16 +41,21 @@ struct CrustSummary {
 // then runs for nearly every insertion (a 16k-ball cube: 3.9 s rather than 0.7 s). The
 // perturbation puts the balls in general position for the predicates; the power vertices that the
 // unperturbed balls share exactly are then snapped to their sample (crust_faces_3d).
+// `seed` picks another fixed perturbation (0: the default one).
 inline constexpr double kWeightPerturbation = 1e-9;
 template <int D>
-std::vector<double> power_weights(const Balls<D>& balls);
+std::vector<double> power_weights(const Balls<D>& balls, std::uint64_t seed = 0);
+
+// power_crust_3d rebuilds a crust that is not a valid solid with up to this many perturbations.
+inline constexpr std::uint64_t kPerturbations = 3;
 
 // The 2-D crust as closed loops, interior on the left (counter-clockwise outer boundaries).
 // kInvalidArgument for fewer than 3 balls or no interior/exterior pair; kInternal when the crust
 // reaches an unbounded power cell (the exterior balls did not enclose the interior ones).
 Result<Polygon2> power_crust_2d(const Balls2& balls, CrustSummary* summary = nullptr);
 
-// The 3-D crust, outward oriented, checked as described above.
+// The 3-D crust, outward oriented, checked as described above; a crust that fails is rebuilt with
+// another perturbation of the weights (kPerturbations in all).
 Result<TriangleMesh> power_crust_3d(const Balls3& balls, CrustSummary* summary = nullptr);
 
 // The crust of a regular triangulation of `balls` already built (weights power_weights), unchecked;
