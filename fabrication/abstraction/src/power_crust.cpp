@@ -39,13 +39,21 @@ Status check_labels(const Balls<D>& balls) {
 // (union-find over a hash grid); triangles that lose a corner go, and pairs of opposite triangles
 // on the same three vertices (a collapsed sliver pocket) cancel.
 constexpr double kMergeFraction = 1e-13;
+constexpr double kNoMergeRadius = 100.0;  // in merge distances
 constexpr int kSnapAttempts = 4;
 
 TriangleMesh merge_close_vertices(const std::vector<Eigen::Vector3d>& vertices,
-                                  const std::vector<Eigen::Vector3i>& triangles) {
+                                  const std::vector<Eigen::Vector3i>& triangles,
+                                  const std::vector<Eigen::Vector3d>& no_merge) {
   Eigen::AlignedBox3d box;
   for (const auto& v : vertices) box.extend(v);
   const double h = std::max(kMergeFraction * box.diagonal().norm(), 1e-300);
+  // Vertices near a point where merging joined two sheets (power_crust_3d's retries) stay apart.
+  const auto kept_apart = [&](const Eigen::Vector3d& p) {
+    for (const auto& q : no_merge)
+      if ((p - q).norm() <= kNoMergeRadius * h) return true;
+    return false;
+  };
   // A grid of cells 2h wide in an open-addressed table (cell -> first vertex, then `next`): a
   // vertex within h of p lies in p's cell or, along each axis, in the neighbour on the side of
   // the cell's middle that p is on, so 8 cells are visited.
@@ -77,6 +85,7 @@ TriangleMesh merge_close_vertices(const std::vector<Eigen::Vector3d>& vertices,
     return x;
   };
   for (std::size_t i = 0; i < n; ++i) {
+    if (!no_merge.empty() && kept_apart(vertices[i])) continue;
     const Eigen::Vector3d q = vertices[i] / cell_size;
     std::array<std::int64_t, 3> c{};
     std::array<std::int64_t, 3> side{};
@@ -379,7 +388,8 @@ std::vector<Eigen::Vector3d> non_manifold_points(const TriangleMesh& m) {
 }
 
 Result<TriangleMesh> crust_faces_3d(const geometry::Triangulation3& rt, const Balls3& balls,
-                                    const std::vector<std::uint8_t>& no_snap) {
+                                    const std::vector<std::uint8_t>& no_snap,
+                                    const std::vector<Eigen::Vector3d>& no_merge) {
   const auto& interior = balls.interior;
   // The crust vertex of each cell's power vertex, one per sample for those snapped to a sample.
   std::vector<int> vertex_of(rt.cells.size(), -1);
@@ -424,7 +434,7 @@ Result<TriangleMesh> crust_faces_3d(const geometry::Triangulation3& rt, const Ba
       }
     }
   }
-  return merge_close_vertices(vertices, triangles);
+  return merge_close_vertices(vertices, triangles, no_merge);
 }
 
 Status check_crust(double max_deviation, TriangleMesh* mesh, CrustSummary* summary) {
@@ -479,10 +489,13 @@ Result<TriangleMesh> crust_with_perturbation(const Balls3& balls, std::uint64_t 
   for (const auto v : rt.is_vertex) sum->hidden_balls += v ? 0 : 1;
   TriangleMesh mesh;
   std::vector<std::uint8_t> no_snap(balls.samples.size(), 0);
+  std::vector<Eigen::Vector3d> no_merge;
   // Snapping can make the crust touch itself where two sheets pass through one sample (thin
   // parts, a boolean's contact curve): those samples are left unsnapped and the crust rebuilt.
+  // There the two sheets' power vertices lie within a few merge distances of each other, and
+  // merging them joins the sheets again: the next attempt keeps those apart.
   for (int attempt = 0; attempt < kSnapAttempts; ++attempt) {
-    HC_ASSIGN_OR_RETURN(mesh, crust_faces_3d(rt, balls, no_snap));
+    HC_ASSIGN_OR_RETURN(mesh, crust_faces_3d(rt, balls, no_snap, no_merge));
     sum->faces = static_cast<std::size_t>(mesh.num_triangles());
     Eigen::AlignedBox3d box;
     for (Eigen::Index i = 0; i < mesh.num_vertices(); ++i)
@@ -490,11 +503,18 @@ Result<TriangleMesh> crust_with_perturbation(const Balls3& balls, std::uint64_t 
     const std::vector<Eigen::Vector3d> bad = non_manifold_points(mesh);
     std::size_t added = 0;
     for (const auto& p : bad) {
+      bool sample = false;
       for (std::size_t s = 0; s < balls.samples.size(); ++s) {
-        if (balls.samples[s] == p && !no_snap[s]) {
+        if (balls.samples[s] != p) continue;
+        sample = true;
+        if (!no_snap[s]) {
           no_snap[s] = 1;
           ++added;
         }
+      }
+      if (!sample && std::find(no_merge.begin(), no_merge.end(), p) == no_merge.end()) {
+        no_merge.push_back(p);
+        ++added;
       }
     }
     if (added > 0 && attempt + 1 < kSnapAttempts) continue;

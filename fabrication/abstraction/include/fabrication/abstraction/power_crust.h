@@ -62,10 +62,11 @@ Result<TriangleMesh> power_crust_3d(const Balls3& balls, CrustSummary* summary =
 // what power_crust_3d runs before its checks. With balls.defining set, a power vertex whose four
 // balls share a sample is placed on that sample (the nearest such, if several), vertices at the
 // same position are merged, triangles that lose a corner are dropped and opposite pairs cancel.
-// Samples in `no_snap` are not snapped to (power_crust_3d retries with the samples where a snapped
-// crust touched itself).
+// Samples in `no_snap` are not snapped to, and vertices near a `no_merge` point are not merged
+// (power_crust_3d retries with the samples and points where a crust touched itself).
 Result<TriangleMesh> crust_faces_3d(const geometry::Triangulation3& rt, const Balls3& balls,
-                                    const std::vector<std::uint8_t>& no_snap = {});
+                                    const std::vector<std::uint8_t>& no_snap = {},
+                                    const std::vector<Eigen::Vector3d>& no_merge = {});
 
 // The power face dual to the regular-triangulation edge a-b (input indices), found from a finite
 // cell containing both: the cells around the edge in order, turning counter-clockwise about
