@@ -187,7 +187,6 @@ Status check_clearance(const std::vector<CarvedPart>& parts,
   return {};
 }
 
-// What one joint's check needs besides the joint.
 // The largest factor in [0.1, 1] of a range for which `clean(factor)` holds, assuming that less
 // range collides less: 0.1 first (false: nothing found), then three halvings of [0.1, 1), so to
 // about 0.1. `clean(1)` is known to be false.
@@ -205,6 +204,7 @@ Result<bool> largest_clean_factor(Clean clean, double* factor) {
   return true;
 }
 
+// What one joint's check needs besides the joint.
 struct JointCheckInput {
   const std::vector<CarvedPart>& parts;
   const std::vector<std::unique_ptr<geometry::MeshProximity>>& trees;
