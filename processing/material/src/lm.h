@@ -66,8 +66,11 @@ struct LmProblem {
   std::function<Result<std::unique_ptr<JacobianOperator>>(const Eigen::VectorXd& q)> jacobian_operator;
   bool matrix_free = false;
   Eigen::Index rows = 0;  // residual length (needed by the matrix-free path's sketch)
-  // Parameters per element: the matrix-free preconditioner inverts these diagonal blocks.
+  // Parameters per element: the matrix-free preconditioner holds these diagonal blocks of JᵀJ.
   int block = 1;
+  // Flops of one product J v (or Jᵀ w) of the matrix-free path: whether its preconditioner also
+  // factorises RᵀR (see lm.cpp) is chosen from it.
+  double product_flops = 0;
   Eigen::SparseMatrix<double> reg;  // R (rows × n) already multiplied by sqrt(γ); may be 0×0
   Eigen::VectorXd reg_target;       // b: the regulariser is ‖R q − b‖² (empty: b = 0)
   ProgressReporter* progress = nullptr;  // one unit per LM iteration

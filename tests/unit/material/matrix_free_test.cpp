@@ -138,6 +138,8 @@ TEST(MatrixFree, JointFitAgreesWithTheDensePath) {
   ASSERT_TRUE(dense.ok()) << dense.status().to_string();
   ASSERT_TRUE(free.ok()) << free.status().to_string();
   EXPECT_TRUE(fs.matrix_free);
+  std::printf("matrix-free joint fit: %d LM iterations, %ld CG iterations (dense: %d LM)\n",
+              fs.iterations, fs.cg_iterations, ds.iterations);
   // Every element's material (base stiffness, Poisson's ratio in the constant term; stiffening
   // weights) within 1e-6 relative of the dense path's (weights relative to the base stiffness).
   double worst = 0;
