@@ -73,7 +73,7 @@ class DenseLinearization final : public Linearization {
 };
 
 // Matrix-free: preconditioned CG on the normal equations, J v and Jᵀ w by the operator. The
-// preconditioner approximates JᵀJ + RᵀR + μ D by B + RᵀR + μ D, with B JᵀJ's diagonal blocks
+// preconditioner approximates JᵀJ + RᵀR + μ D by M = B + RᵀR + μ D, with B JᵀJ's diagonal blocks
 // estimated from a Gaussian sketch: for W with k columns of N(0, 1/k), E[Jᵀ W Wᵀ J] = JᵀJ, so the
 // blocks of (Jᵀ W)(Jᵀ W)ᵀ estimate those of JᵀJ from k adjoint products (one
 // multi-right-hand-side solve). RᵀR is kept whole (M sparse, factorised by CHOLMOD) where that
@@ -252,7 +252,7 @@ class MatrixFreeLinearization final : public Linearization {
   int block_ = 1;
   Preconditioner* preconditioner_ = nullptr;
   LmSettings settings_;
-  Eigen::MatrixXd jtj_blocks_;  // n × block: the diagonal blocks of B + RᵀR
+  Eigen::MatrixXd jtj_blocks_;  // n × block: B plus RᵀR's diagonal blocks
   fem::SparseMatrix whole_;     // M's upper triangle without μ D (when RᵀR is kept whole)
   double eta_ = 0.1;
 };
