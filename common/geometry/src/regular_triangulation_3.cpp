@@ -18,9 +18,14 @@
 #include <tbb/parallel_for.h>
 #include <tbb/parallel_sort.h>
 
+#include <algorithm>
+#include <chrono>
 #include <cmath>
+#include <fstream>
 #include <limits>
 #include <memory>
+#include <string>
+#include <thread>
 #include <utility>
 
 #include "cgal_support.h"
@@ -47,9 +52,47 @@ using Lock = CGAL::Spatial_lock_grid_3<CGAL::Tag_priority_blocking>;
 using Rt = CGAL::Regular_triangulation_3<Gt, Tds, Lock>;
 // Below this many points the parallel insertion's set-up costs more than it saves.
 constexpr std::size_t kParallelFrom = 20'000;
-bool parallel(std::size_t points) { return points >= kParallelFrom; }
+bool large(std::size_t points) { return points >= kParallelFrom; }
 using WPoint = Gt::Weighted_point_3;
 using BPoint = Gt::Point_3;
+// The parallel insertion only pays on idle cores: its threads wait for each other's spatial locks,
+// so a lock holder preempted by another process stalls the rest. Measured on 2 cores
+// (bench_abstraction fandisk.off, 596,637 balls): 2.5 s parallel / 3.6 s sequential on an idle
+// machine; with two busy processes beside it 6-20 s parallel against 5.4 s sequential (the
+// 100k-point Delaunay 0.36 -> 6.5 s). So kAuto inserts in parallel only while no other thread is
+// runnable on the core it would take: Linux's instantaneous count of runnable threads
+// (/proc/stat procs_running, this one included; the median of three reads 2 ms apart) at most
+// cores - 1. The 1-minute load average would lag, and count this process's own parallel phases.
+// Where /proc/stat cannot be read, parallel.
+int runnable_threads() {
+  std::array<int, 3> reads{};
+  for (std::size_t i = 0; i < reads.size(); ++i) {
+    if (i > 0) std::this_thread::sleep_for(std::chrono::milliseconds(2));
+    int running = -1;
+    std::ifstream in("/proc/stat");
+    std::string key;
+    while (in >> key) {
+      if (key == "procs_running") {
+        in >> running;
+        break;
+      }
+      in.ignore(std::numeric_limits<std::streamsize>::max(), '\n');
+    }
+    if (running < 0) return -1;
+    reads[i] = running;
+  }
+  std::sort(reads.begin(), reads.end());
+  return reads[1];
+}
+
+bool parallel(std::size_t points, Insertion insertion) {
+  if (!large(points) || insertion == Insertion::kSequential) return false;
+  if (insertion == Insertion::kParallel) return true;
+  const int cores = static_cast<int>(std::thread::hardware_concurrency());
+  if (cores < 2) return false;
+  const int runnable = runnable_threads();
+  return runnable < 0 || runnable <= cores - 1;
+}
 
 Status check_input(std::span<const Eigen::Vector3d> points, std::span<const double> weights,
                    std::string_view what) {
@@ -66,7 +109,7 @@ Status check_input(std::span<const Eigen::Vector3d> points, std::span<const doub
 }
 
 Status build_rt(std::span<const Eigen::Vector3d> points, std::span<const double> weights,
-                std::string_view what, Rt* rt) {
+                std::string_view what, Insertion insertion, Rt* rt) {
   HC_RETURN_IF_ERROR(check_input(points, weights, what));
   std::vector<std::pair<WPoint, int>> input;
   input.reserve(points.size());
@@ -81,7 +124,7 @@ Status build_rt(std::span<const Eigen::Vector3d> points, std::span<const double>
   // triangulation does not depend on the insertion order (the perturbation of degenerate
   // predicates is symbolic), so the parallel insertion gives the same cells, in another order.
   std::unique_ptr<Lock> lock;
-  if (parallel(points.size())) lock = std::make_unique<Lock>(box, 50);
+  if (parallel(points.size(), insertion)) lock = std::make_unique<Lock>(box, 50);
   rt->set_lock_data_structure(lock.get());
   rt->insert(input.begin(), input.end());
   rt->set_lock_data_structure(nullptr);
@@ -115,11 +158,11 @@ std::array<int, 4> canonical_order(const std::array<int, 4>& v) {
 }  // namespace
 
 Result<Triangulation3> triangulate_3d(std::span<const Eigen::Vector3d> points,
-                                      std::span<const double> weights) {
+                                      std::span<const double> weights, Insertion insertion) {
   constexpr std::string_view kWhat = "triangulate_3d";
   return guarded<Triangulation3>(kWhat, [&]() -> Result<Triangulation3> {
     Rt rt;
-    HC_RETURN_IF_ERROR(build_rt(points, weights, kWhat, &rt));
+    HC_RETURN_IF_ERROR(build_rt(points, weights, kWhat, insertion, &rt));
     if (rt.dimension() < 3) {
       return invalid_argument(fmt::format("{}: the {} points span only {} dimension(s); 3 needed",
                                           kWhat, points.size(),
@@ -130,16 +173,17 @@ Result<Triangulation3> triangulate_3d(std::span<const Eigen::Vector3d> points,
     for (auto v = rt.finite_vertices_begin(); v != rt.finite_vertices_end(); ++v) {
       out.is_vertex[static_cast<std::size_t>(v->info())] = 1;
     }
-    // After a parallel insertion the cells are put in a canonical order (sorted by their
-    // canonical corner spelling), so the output is the same whichever order the threads left them
-    // in; a sequential insertion's order is deterministic already and is kept (the crust's
-    // triangulation of each power face starts at its first cell, so reordering changes output).
+    // Large inputs' cells are put in a canonical order (sorted by their canonical corner
+    // spelling), so the output is the same whichever order the threads left them in, and the same
+    // whether the insertion ran in parallel or not; a small input's sequential order is
+    // deterministic already and is kept (the crust's triangulation of each power face starts at
+    // its first cell, so reordering changes output).
     struct Entry {
-      std::array<int, 4> corners;  // canonical spelling (after a parallel insertion)
+      std::array<int, 4> corners;  // canonical spelling (for large inputs)
       std::array<int, 4> perm;     // corners[k] = CGAL's vertex perm[k]
       Rt::Cell_handle cell;
     };
-    const bool sort = parallel(points.size());
+    const bool sort = large(points.size());
     std::vector<Entry> cells;
     cells.reserve(rt.number_of_cells());
     for (auto c = rt.all_cells_begin(); c != rt.all_cells_end(); ++c) {
@@ -199,7 +243,7 @@ Result<PowerQuery> nearest_power_3d(std::span<const Eigen::Vector3d> centres,
           fmt::format("{}: {} balls with {} weights", kWhat, centres.size(), weights.size()));
     }
     Rt rt;
-    HC_RETURN_IF_ERROR(build_rt(centres, weights, kWhat, &rt));
+    HC_RETURN_IF_ERROR(build_rt(centres, weights, kWhat, Insertion::kAuto, &rt));
     PowerQuery out;
     out.power.resize(queries.size());
     out.ball.resize(queries.size());

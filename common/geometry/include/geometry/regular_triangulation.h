@@ -3,9 +3,10 @@
 // predicates. The power vertex of every cell (the orthocentre: the point of equal power to its
 // four weighted corners) is constructed in double, so cells that share a power vertex exactly may
 // get positions a few ulps apart (see regular_triangulation_3.cpp for why not exactly). Inputs of
-// 20,000 points or more are inserted in parallel (TBB); their cells are then sorted into a
-// canonical order, so the output is the same on every run. The medial-ball code of
-// fabrication/abstraction walks this output; no CGAL type appears here.
+// 20,000 points or more are inserted in parallel (TBB) while the machine has an idle core; their
+// cells are then sorted into a canonical order, so the output is the same on every run, parallel
+// or not. The medial-ball code of fabrication/abstraction walks this output; no CGAL type appears
+// here.
 #pragma once
 
 #include <Eigen/Core>
@@ -40,13 +41,19 @@ struct Triangulation3 {
   }
 };
 
+// How inputs of 20,000 points or more are inserted (smaller ones always sequentially): kAuto in
+// parallel while no other thread is runnable on the core it would take. The output does not
+// depend on it.
+enum class Insertion { kAuto, kSequential, kParallel };
+
 // Triangulates `points` (finite coordinates; at least 4 not coplanar). With `weights` empty this is
 // the Delaunay triangulation; otherwise weights[i] is the squared radius of ball i (any sign) and
 // the result is the regular triangulation, dual to the power diagram. kInvalidArgument for
 // non-finite input, mismatched sizes or a degenerate (coplanar) point set; kInternal when CGAL
 // fails.
 Result<Triangulation3> triangulate_3d(std::span<const Eigen::Vector3d> points,
-                                      std::span<const double> weights = {});
+                                      std::span<const double> weights = {},
+                                      Insertion insertion = Insertion::kAuto);
 
 // For each query point, the smallest power distance |q - c_i|^2 - w_i over the weighted points
 // (the ball whose power cell contains q) and that ball's index: q lies inside the union of the
