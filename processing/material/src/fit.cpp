@@ -360,7 +360,7 @@ Status fit_example(ExampleProblem* problem, const std::vector<LambdaAlpha>& init
     };
     lm.rows = problem->num_measurements();
     lm.block = 2;
-    lm.product_flops = 4 * problem->factor_entries();  // one solve
+    lm.product_flops = detail::solve_flops(problem->factor_entries());
     lm.matrix_free = !detail::prefer_dense(static_cast<double>(lm.rows), 2.0 * static_cast<double>(t),
                                            problem->factor_entries(), 1, options);
     lm.jacobian_operator = [&](const Eigen::VectorXd& qq)

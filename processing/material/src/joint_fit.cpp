@@ -308,7 +308,7 @@ Result<Material> fit_joint_material(const std::vector<ExampleProblem*>& problems
   detail::LmProblem lm;
   lm.rows = rows;
   lm.block = static_cast<int>(np);
-  lm.product_flops = 4 * factor_entries * static_cast<double>(n);  // one solve per example
+  lm.product_flops = detail::solve_flops(factor_entries) * static_cast<double>(n);  // per example
   lm.progress = options.progress;
   lm.matrix_free = !detail::prefer_dense(static_cast<double>(rows), static_cast<double>(np * t),
                                          factor_entries, static_cast<double>(n), parameters);

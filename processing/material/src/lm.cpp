@@ -274,10 +274,10 @@ bool prefer_dense(double m, double n, double factor_entries, double examples,
                   const ParameterFitOptions& options) {
   if (options.solver == FitSolver::kDense) return true;
   if (options.solver == FitSolver::kMatrixFree) return false;
-  // Per LM iteration, in flops: dense forms J (min(m, n) solves per example, ~4 flops per factor
-  // entry each), JᵀJ (m n²) and factorises it (n³/3, ~1.5 attempts); matrix-free needs the sketch,
-  // the gradient and ~2 solves per CG iteration (~60 observed) per example.
-  const double solve = 4 * factor_entries;
+  // Per LM iteration, in flops: dense forms J (min(m, n) solves per example), JᵀJ (m n²) and
+  // factorises it (n³/3, ~1.5 attempts); matrix-free needs the sketch, the gradient and ~2 solves
+  // per CG iteration (~60 observed) per example.
+  const double solve = solve_flops(factor_entries);
   const double dense = examples * std::min(m / examples, n) * solve + m * n * n + 0.5 * n * n * n;
   const double free = examples * solve * (options.sketch_size + 2 + 2 * 60.0);
   const double dense_bytes = 8 * (m * n + 2 * n * n);

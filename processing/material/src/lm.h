@@ -92,6 +92,10 @@ LmSettings lm_settings(const ParameterFitOptions& options);
 Status run_lm(const LmProblem& problem, const LmSettings& settings, Eigen::VectorXd* q,
               ParameterFitSummary* summary);
 
+// Flops of one solve with a Cholesky factor of `factor_entries` entries (forward and back
+// substitution: ~4 per entry); the cost model of prefer_dense and LmProblem::product_flops.
+inline double solve_flops(double factor_entries) { return 4 * factor_entries; }
+
 // Whether the dense path is expected to be faster (and fits in memory) for a problem with m
 // residuals, n parameters and Cholesky factors of `factor_entries` entries over `examples` FEM
 // models (see fit.h, FitSolver::kAuto).
