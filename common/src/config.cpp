@@ -401,6 +401,12 @@ std::size_t first_invalid_utf8(std::string_view s) {
 }
 }  // namespace
 
+// The text is checked for UTF-8 before parsing, but yaml-cpp decodes the escapes \N and \_ to the
+// single bytes 0x85 and 0xA0, not to their UTF-8 encodings: its strings (keys too) are checked
+// again where they are read.
+constexpr std::string_view kNotUtf8Hint =
+    "(yaml-cpp decodes the escapes \\N and \\_ to single bytes: write the character itself)";
+
 Result<Config> parse_config(std::string_view text, std::string_view name) {
   if (const std::size_t bad = first_invalid_utf8(text); bad != std::string_view::npos) {
     const auto line =
@@ -494,6 +500,10 @@ std::optional<std::vector<std::pair<std::string, ConfigNode>>> ConfigNode::entri
   for (const auto& entry : node) {
     if (!entry.first.IsScalar()) continue;  // check_keys reports it
     const std::string& key = entry.first.Scalar();
+    if (first_invalid_utf8(key) != std::string_view::npos) {
+      error(fmt::format("a key that is not UTF-8 {}", kNotUtf8Hint));
+      return std::nullopt;
+    }
     const std::size_t key_line = line_of(entry.first, s.line);
     const std::size_t line = entry.second.IsNull() ? key_line : line_of(entry.second, key_line);
     auto child = child_state(*context_, s, key, false, entry.second, line);
@@ -582,6 +592,10 @@ bool ConfigNode::get(std::string& out) {
   const YAML::Node& n = state_->node;
   if (!n.IsScalar()) {
     error(fmt::format("expected a string, got {}", describe_node(n)));
+    return false;
+  }
+  if (const std::size_t bad = first_invalid_utf8(n.Scalar()); bad != std::string_view::npos) {
+    error(fmt::format("a string that is not UTF-8 at byte {} {}", bad, kNotUtf8Hint));
     return false;
   }
   out = n.Scalar();

@@ -3,6 +3,8 @@
 #include <fmt/format.h>
 #include <gtest/gtest.h>
 
+#include <nlohmann/json.hpp>
+
 #include <array>
 #include <fstream>
 #include <map>
@@ -536,6 +538,31 @@ TEST(Config, RejectsTextThatIsNotUtf8WithItsLine) {
     EXPECT_NE(r.status().message().find("plan.yaml:2"), std::string::npos) << r.status().message();
     EXPECT_NE(r.status().message().find("not UTF-8"), std::string::npos);
   }
+}
+
+// UTF-8 text whose YAML escapes decode to bytes that are not: yaml-cpp turns \_ (U+00A0) and \N
+// (U+0085) into the single bytes 0xA0 and 0x85. Reading such a string or key is an error that
+// names the file, line and key; JSON output of it would throw (found by fuzz_plan).
+TEST(Config, EscapesThatDecodeToInvalidUtf8AreRefusedWhereRead) {
+  Result<Config> config = parse_config("a: 1\nname: \"x\\_y\"\nmap: {\"k\\N\": v}\n", "p.yaml");
+  ASSERT_TRUE(config.ok()) << config.status().to_string();
+  const Status status = read_config(*config, [](ConfigNode root) {
+    std::int64_t a = 0;
+    std::string name;
+    std::map<std::string, std::string> map;
+    root.required("a", a);
+    root.required("name", name);
+    root.required("map", map);
+    return root.status();
+  });
+  ASSERT_FALSE(status.ok());
+  EXPECT_NE(status.message().find("p.yaml:2: name: a string that is not UTF-8 at byte 1"),
+            std::string::npos)
+      << status.message();
+  EXPECT_NE(status.message().find("p.yaml:3: map: a key that is not UTF-8"), std::string::npos)
+      << status.message();
+  // The message itself is UTF-8 (it may be printed as JSON).
+  EXPECT_EQ(nlohmann::json(status.message()).dump().find("\\u"), std::string::npos);
 }
 
 }  // namespace
