@@ -401,9 +401,9 @@ std::size_t first_invalid_utf8(std::string_view s) {
 }
 }  // namespace
 
-// The text is checked for UTF-8 before parsing, but yaml-cpp decodes the escapes \N and \_ to the
-// single bytes 0x85 and 0xA0, not to their UTF-8 encodings: its strings (keys too) are checked
-// again where they are read.
+// The text is checked for UTF-8 before parsing, but yaml-cpp decodes the escapes \N and \_ (and a
+// raw NUL byte followed by _, as fuzz_plan found) to the single bytes 0x85 and 0xA0, not to their
+// UTF-8 encodings: its strings (keys too) are checked again where they are read.
 constexpr std::string_view kNotUtf8Hint =
     "(yaml-cpp decodes the escapes \\N and \\_ to single bytes: write the character itself)";
 

@@ -6,6 +6,7 @@
 #include <cmath>
 #include <functional>
 #include <memory>
+#include <optional>
 #include <random>
 #include <vector>
 
@@ -88,8 +89,8 @@ class DenseLinearization final : public Linearization {
 // 1.6M factor entries on 3,072 parameters) keeps block-Jacobi.
 constexpr double kSavedProducts = 50;
 struct Preconditioner {
-  fem::SparseCholesky cholesky;  // analysed for M's pattern when whole_reg is 1
-  int whole_reg = -1;            // -1: not decided yet
+  fem::SparseCholesky cholesky;   // analysed for M's pattern when whole_reg holds true
+  std::optional<bool> whole_reg;  // empty: not decided yet
 };
 
 class MatrixFreeLinearization final : public Linearization {
@@ -131,7 +132,7 @@ class MatrixFreeLinearization final : public Linearization {
     l->diag_.resize(n);
     for (Eigen::Index i = 0; i < n; ++i) l->diag_(i) = l->jtj_blocks_(i, i % block);
     floor_diagonal(&l->diag_);
-    if (preconditioner->whole_reg != 0 && rtr.rows() > 0) {
+    if (preconditioner->whole_reg.value_or(true) && rtr.rows() > 0) {
       // M's upper triangle: the blocks, and RᵀR's entries outside them.
       std::vector<Eigen::Triplet<double, int>> trip;
       for (Eigen::Index i = 0; i < n; ++i)
@@ -145,7 +146,7 @@ class MatrixFreeLinearization final : public Linearization {
       l->whole_.resize(n, n);
       l->whole_.setFromTriplets(trip.begin(), trip.end());
       l->whole_.makeCompressed();
-      if (preconditioner->whole_reg < 0) {
+      if (!preconditioner->whole_reg) {
         const double budget = kSavedProducts * 2 * product_flops;
         const double nnz = static_cast<double>(l->whole_.nonZeros());
         // nnz(M)² / n bounds the factor's flops from below: no analysis past the budget.
@@ -155,7 +156,7 @@ class MatrixFreeLinearization final : public Linearization {
           const double factor = preconditioner->cholesky.summary().nnz_factor;
           whole = factor * factor / static_cast<double>(n) <= budget;
         }
-        preconditioner->whole_reg = whole ? 1 : 0;
+        preconditioner->whole_reg = whole;
       }
     }
     // Inexact Gauss–Newton: a loose CG tolerance while far from the minimum, tightening as the
@@ -170,7 +171,7 @@ class MatrixFreeLinearization final : public Linearization {
     std::function<Eigen::VectorXd(const Eigen::VectorXd&)> precondition;
     bool factored = false;
     Eigen::VectorXd solved;
-    if (preconditioner_->whole_reg == 1) {
+    if (preconditioner_->whole_reg.value_or(false)) {
       fem::SparseMatrix m = whole_;
       for (Eigen::Index i = 0; i < n; ++i) m.coeffRef(i, i) += mu * diag_(i);
       // M is SPD in exact arithmetic; should rounding break that, block-Jacobi takes over.
