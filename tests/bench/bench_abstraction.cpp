@@ -58,7 +58,8 @@ int reconstruction(const std::string& path) {
   if (!balls.ok()) return fmt::print(stderr, "{}\n", balls.status().to_string()), 2;
   const double t_balls = since(t);
   t = Clock::now();
-  auto rt = hc::geometry::triangulate_3d(balls->centres, power_weights(*balls));
+  auto rt = hc::geometry::triangulate_3d(balls->centres, power_weights(*balls),
+                                         {.centres_between = balls->interior});
   const double t_rt = since(t);
   t = Clock::now();
   auto crust = crust_faces_3d(*rt, *balls);

@@ -63,6 +63,18 @@ inline double signed_volume(const TriangleMesh& m) {
   return v;
 }
 
+// Surface area of a mesh: the sum of its triangles' areas.
+inline double surface_area(const TriangleMesh& m) {
+  double area = 0.0;
+  for (Eigen::Index t = 0; t < m.num_triangles(); ++t) {
+    const Eigen::Vector3d a = m.vertices.row(m.triangles(t, 0));
+    const Eigen::Vector3d b = m.vertices.row(m.triangles(t, 1));
+    const Eigen::Vector3d c = m.vertices.row(m.triangles(t, 2));
+    area += 0.5 * (b - a).cross(c - a).norm();
+  }
+  return area;
+}
+
 // Icosphere: the regular icosahedron, each triangle split in four `subdivisions` times with the
 // new vertices pushed onto the sphere. 20 * 4^s triangles, 10 * 4^s + 2 vertices, outward
 // oriented. Its volume approaches 4/3 pi r^3 from below (inscribed polyhedron).

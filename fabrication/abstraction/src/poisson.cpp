@@ -188,8 +188,8 @@ std::vector<std::size_t> poisson_eliminate(std::span<const Vec<D>> points, const
       accepted.push_back(i);
       const double rho = epsilon * pool.r[i];
       const double rho2 = rho * rho;
-      hash.for_each_candidate(points[i], rho, [&](std::size_t j) {
-        if (pool.pool[j] >= which && (points[j] - points[i]).squaredNorm() < rho2) alive[j] = 0;
+      hash.for_each_candidate(points[i], rho, [&](std::size_t j, const Vec<D>& p) {
+        if ((p - points[i]).squaredNorm() < rho2 && pool.pool[j] >= which) alive[j] = 0;
       });
     }
   }

@@ -219,8 +219,19 @@ Result<Samples<D>> sample(Elements<D> elements, std::vector<Vec<D>> corners,
   HC_RETURN_IF_ERROR(
       internal::draw_pools<D>(elements, corners, corner_kinds, corner_r, o, rng, &pts, &pool));
   sum.pool = pts.size();
+  std::vector<std::size_t> kept = internal::poisson_eliminate<D>(pts, pool, o.epsilon, rng);
+  if constexpr (D == 3) {
+    // Along a Hilbert curve: everything built from the samples in their order (Delaunay cells,
+    // balls, the crust) then keeps neighbours near in memory (regular_triangulation.h).
+    std::vector<Vec<D>> at(kept.size());
+    for (std::size_t k = 0; k < kept.size(); ++k) at[k] = pts[kept[k]];
+    std::vector<std::size_t> sorted(kept.size());
+    const std::vector<std::size_t> order = geometry::spatial_order(at);
+    for (std::size_t k = 0; k < kept.size(); ++k) sorted[k] = kept[order[k]];
+    kept = std::move(sorted);
+  }
   Samples<D> out;
-  for (const std::size_t i : internal::poisson_eliminate<D>(pts, pool, o.epsilon, rng)) {
+  for (const std::size_t i : kept) {
     out.points.push_back(pts[i]);
     out.radii.push_back(pool.r[i]);
     out.kinds.push_back(pool.kind[i]);

@@ -52,7 +52,9 @@ std::set<std::array<int, 4>> cell_sets(const Triangulation3& t) {
 TEST(RegularTriangulation3, ParallelInsertionIsRegularAndDeterministic) {
   constexpr std::size_t kN = 30'000;
   const Weighted w = random_balls(kN, 0.01, 7);
-  auto t = triangulate_3d(w.points, w.weights, Insertion::kParallel);
+  Triangulate3Options parallel;
+  parallel.insertion = Insertion::kParallel;
+  auto t = triangulate_3d(w.points, w.weights, parallel);
   ASSERT_TRUE(t.ok()) << t.status().message();
   const std::size_t cells = t->cells.size();
   // A Delaunay tetrahedralisation of uniform random points has about 6.77 n cells (Dwyer 1991);
@@ -97,13 +99,15 @@ TEST(RegularTriangulation3, ParallelInsertionIsRegularAndDeterministic) {
   // a point spacing of 30000^(-1/3) = 0.032 that is rare.
   EXPECT_LT(hidden, kN / 10);
 
-  auto again = triangulate_3d(w.points, w.weights, Insertion::kParallel);
+  auto again = triangulate_3d(w.points, w.weights, parallel);
   ASSERT_TRUE(again.ok());
   EXPECT_EQ(again->cells, t->cells);
   EXPECT_EQ(again->neighbours, t->neighbours);
   EXPECT_EQ(again->is_vertex, t->is_vertex);
   // A sequential insertion (what kAuto does on a busy machine) gives the same output.
-  auto sequential = triangulate_3d(w.points, w.weights, Insertion::kSequential);
+  Triangulate3Options sequential_options;
+  sequential_options.insertion = Insertion::kSequential;
+  auto sequential = triangulate_3d(w.points, w.weights, sequential_options);
   ASSERT_TRUE(sequential.ok());
   EXPECT_EQ(sequential->cells, t->cells);
   EXPECT_EQ(sequential->neighbours, t->neighbours);
@@ -120,6 +124,59 @@ TEST(RegularTriangulation3, ParallelInsertionIsRegularAndDeterministic) {
     for (int& i : c) i = i < 0 ? -1 : static_cast<int>(kN) - 1 - i;
   }
   EXPECT_EQ(cell_sets(*r), cell_sets(*t));
+}
+
+// centres_between: the power vertices of exactly the cells with corners of both labels, equal to
+// those computed for every cell; NaN elsewhere. A label per point or none.
+TEST(RegularTriangulation3, CentresOnlyBetweenLabelsAreTheSame) {
+  const Weighted w = random_balls(3'000, 0.01, 11);
+  std::vector<std::uint8_t> label(w.points.size());
+  for (std::size_t i = 0; i < label.size(); ++i) label[i] = w.points[i].x() < 0.5 ? 1 : 0;
+  auto all = triangulate_3d(w.points, w.weights);
+  Triangulate3Options o;
+  o.centres_between = label;
+  auto some = triangulate_3d(w.points, w.weights, o);
+  ASSERT_TRUE(all.ok() && some.ok());
+  ASSERT_EQ(some->cells, all->cells);
+  EXPECT_EQ(some->neighbours, all->neighbours);
+  std::size_t mixed = 0;
+  for (std::size_t c = 0; c < all->cells.size(); ++c) {
+    if (!all->is_finite(static_cast<int>(c))) continue;
+    std::set<std::uint8_t> labels;
+    for (const int v : all->cells[c]) labels.insert(label[static_cast<std::size_t>(v)]);
+    if (labels.size() == 2) {
+      ++mixed;
+      EXPECT_EQ(some->centres[c], all->centres[c]) << "cell " << c;
+      EXPECT_EQ(some->squared_radii[c], all->squared_radii[c]) << "cell " << c;
+    } else {
+      EXPECT_TRUE(std::isnan(some->centres[c].x()) && std::isnan(some->squared_radii[c]));
+    }
+  }
+  // A plane through 3,000 points crosses a few hundred of their ~20,000 cells.
+  EXPECT_GT(mixed, 100U);
+  EXPECT_LT(mixed, all->cells.size() / 2);
+  label.pop_back();
+  o.centres_between = label;
+  EXPECT_EQ(triangulate_3d(w.points, w.weights, o).status().code(), StatusCode::kInvalidArgument);
+}
+
+// A Hilbert order is a permutation that visits near points one after another: on 10,000 uniform
+// points its path is far shorter than the input order's (expected lengths ~0.66 n for a random
+// order, ~ n^(2/3) times a small constant for a space-filling curve).
+TEST(SpatialOrder, IsAPermutationWithAShortPath) {
+  const Weighted w = random_balls(10'000, 0.0, 5);
+  const std::vector<std::size_t> order = spatial_order(w.points);
+  ASSERT_EQ(order.size(), w.points.size());
+  std::vector<std::size_t> seen = order;
+  std::sort(seen.begin(), seen.end());
+  for (std::size_t i = 0; i < seen.size(); ++i) ASSERT_EQ(seen[i], i);
+  double input = 0.0, hilbert = 0.0;
+  for (std::size_t i = 1; i < order.size(); ++i) {
+    input += (w.points[i] - w.points[i - 1]).norm();
+    hilbert += (w.points[order[i]] - w.points[order[i - 1]]).norm();
+  }
+  EXPECT_LT(hilbert, 0.15 * input) << hilbert << " against " << input;
+  EXPECT_EQ(spatial_order(w.points), order);
 }
 
 TEST(NearestPoint3, MatchesBruteForce) {

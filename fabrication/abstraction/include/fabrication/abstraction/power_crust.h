@@ -58,7 +58,8 @@ Result<Polygon2> power_crust_2d(const Balls2& balls, CrustSummary* summary = nul
 // another perturbation of the weights (kPerturbations in all).
 Result<TriangleMesh> power_crust_3d(const Balls3& balls, CrustSummary* summary = nullptr);
 
-// The crust of a regular triangulation of `balls` already built (weights power_weights), unchecked;
+// The crust of a regular triangulation of `balls` already built (weights power_weights; centres
+// needed at least between interior and exterior balls: Triangulate3Options::centres_between), unchecked;
 // what power_crust_3d runs before its checks. With balls.defining set, a power vertex whose four
 // balls share a sample is placed on that sample (the nearest such, if several), vertices at the
 // same position are merged, triangles that lose a corner are dropped and opposite pairs cancel.

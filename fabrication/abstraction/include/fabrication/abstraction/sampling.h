@@ -52,8 +52,8 @@ class SpatialHash {
  public:
   using Vec = Eigen::Matrix<double, D, 1>;
   SpatialHash(std::span<const Vec> points, std::span<const int> levels, double base_cell);
-  // Calls fn(i) for every point i within `radius` of `centre` (and possibly a few more within the
-  // visited cells: the caller tests the distance).
+  // Calls fn(i, points[i]) for every point i within `radius` of `centre` (and possibly a few more
+  // within the visited cells: the caller tests the distance).
   template <class Fn>
   void for_each_candidate(const Vec& centre, double radius, Fn&& fn) const;
   std::size_t size() const { return items_.size(); }
@@ -64,8 +64,11 @@ class SpatialHash {
   std::vector<int> levels_present_;
   std::vector<std::uint32_t> start_;  // CSR buckets: items_[start_[h] .. start_[h + 1])
   std::vector<std::uint32_t> items_;
-  std::span<const Vec> points_;
-  std::span<const int> levels_;
+  // The points and levels again, in bucket order (item_points_[k] is input point items_[k]): a query
+  // reads its candidates in sequence instead of across the whole input. 100k samples eliminated
+  // from 1.1M visit 12.7M candidates: 0.79 -> 0.67 s.
+  std::vector<Vec, Eigen::aligned_allocator<Vec>> item_points_;
+  std::vector<int> item_levels_;
 };
 
 enum class SampleKind : std::uint8_t {
@@ -143,7 +146,8 @@ Result<Samples2> sample_polygon(const Polygon2& polygon, const SamplingOptions& 
                                 SamplingSummary* summary = nullptr);
 
 // Samples the surface of `mesh` (indices in range, coordinates finite, at least one triangle of
-// positive area). Edges used by other than two triangles count as sharp.
+// positive area). Edges used by other than two triangles count as sharp. The samples come in their
+// order along a Hilbert curve (geometry::spatial_order).
 Result<Samples3> sample_mesh(const TriangleMesh& mesh, const SamplingOptions& options,
                              const ExtraFeatures<3>& extra = {},
                              SamplingSummary* summary = nullptr);

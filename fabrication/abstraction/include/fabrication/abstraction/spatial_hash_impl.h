@@ -9,7 +9,7 @@ namespace hc::abstraction {
 template <int D>
 SpatialHash<D>::SpatialHash(std::span<const Vec> points, std::span<const int> levels,
                             double base_cell)
-    : base_cell_(base_cell), points_(points), levels_(levels) {
+    : base_cell_(base_cell) {
   std::size_t table = 16;
   while (table < 2 * points.size()) table *= 2;
   start_.assign(table + 1, 0);
@@ -26,6 +26,12 @@ SpatialHash<D>::SpatialHash(std::span<const Vec> points, std::span<const int> le
   std::vector<std::uint32_t> fill(start_.begin(), start_.end() - 1);
   for (std::size_t i = 0; i < points.size(); ++i) {
     items_[fill[slots[i]]++] = static_cast<std::uint32_t>(i);
+  }
+  item_points_.resize(points.size());
+  item_levels_.resize(points.size());
+  for (std::size_t k = 0; k < items_.size(); ++k) {
+    item_points_[k] = points[items_[k]];
+    item_levels_[k] = levels[items_[k]];
   }
   levels_present_.assign(levels.begin(), levels.end());
   std::sort(levels_present_.begin(), levels_present_.end());
@@ -57,7 +63,7 @@ void SpatialHash<D>::for_each_candidate(const Vec& centre, double radius, Fn&& f
     while (true) {
       const std::uint64_t s = slot(c, level);
       for (std::uint32_t k = start_[s]; k < start_[s + 1]; ++k) {
-        if (levels_[items_[k]] == level) fn(static_cast<std::size_t>(items_[k]));
+        if (item_levels_[k] == level) fn(static_cast<std::size_t>(items_[k]), item_points_[k]);
       }
       int axis = 0;
       while (axis < D && ++c[axis] > hi[axis]) {
