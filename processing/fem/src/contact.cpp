@@ -16,6 +16,11 @@ namespace hc::fem {
 namespace {
 // Equilibrium iterations per depth after which the contact's active set is held.
 constexpr int kFreezeAfter = 20;
+// Conjugate-gradient iterations preconditioned by an earlier factorisation before K is factorised
+// again, and their relative tolerance (in the preconditioned residual norm; the equilibrium
+// iteration's own tolerance is on position changes, orders of magnitude coarser).
+constexpr int kReuseIterations = 20;
+constexpr double kReuseTolerance = 1e-6;
 }  // namespace
 
 
@@ -225,9 +230,16 @@ Status ContactSolver::Impl::solve_depth_once(double depth, ContactSummary* s) {
         if (d0 >= 0) extra.segment<3>(d0) += p.weights(k) * f;
       }
     }
-    HC_RETURN_IF_ERROR(fem->factorize());
     const MatrixX3d before = x;
-    HC_RETURN_IF_ERROR(fem->solve(zero, extra));
+    // The factorisation of an earlier iteration (or depth) preconditions conjugate gradients on
+    // this one's K; K is factorised again only when that does not converge in a few iterations.
+    bool solved = false;
+    HC_RETURN_IF_ERROR(
+        fem->solve_preconditioned(extra, kReuseIterations, kReuseTolerance, &solved));
+    if (!solved) {
+      HC_RETURN_IF_ERROR(fem->factorize());
+      HC_RETURN_IF_ERROR(fem->solve(zero, extra));
+    }
     const double change = (fem->positions() - before).cwiseAbs().maxCoeff();
     for (std::size_t i = 0; i < np; ++i)
       keep[i] = active[i] &&

@@ -75,6 +75,11 @@ std::vector<BoundaryFace> boundary_faces(const TetMesh& mesh) {
   return out;
 }
 
+namespace {
+// Lattice loops may visit this many times max_points (i, j) pairs of a triangle before giving up.
+constexpr double kLatticeLoopFactor = 25;
+}  // namespace
+
 Status ContactSamplingOptions::validate() const {
   if (!std::isfinite(spacing_m) || spacing_m < 0)
     return invalid_argument("contact sampling: spacing_m must be >= 0");
@@ -117,9 +122,15 @@ Result<std::vector<ContactPoint>> sample_contact_points(const MatrixX3d& vertice
       const double radius =
           std::max({(a - centre).norm(), (b - centre).norm(), (c - centre).norm()});
       const Eigen::Vector3d w = centre - origin;
-      if ((w - w.dot(dir) * dir).norm() - radius <= reach) {
+      // A triangle facing away from the probe's travel (outward normal along it: a fixed base
+      // under the probe's axis) cannot be touched before the probe has passed through the body.
+      const bool facing_away = (b - a).cross(c - a).dot(dir) > 0;
+      if (!facing_away && (w - w.dot(dir) * dir).norm() - radius <= reach) {
         const double mm = std::ceil(longest / spacing);
-        if (mm * mm > static_cast<double>(options.max_points))
+        // Only the lattice points within reach are kept (below), so a triangle much larger than
+        // the probe (a box's face under a small punch: 1,811² points) costs a loop, not memory;
+        // the loop itself is bounded here.
+        if (mm * mm > kLatticeLoopFactor * static_cast<double>(options.max_points))
           return invalid_argument(fmt::format(
               "contact sampling: triangle {} ({:.3g} m) would need {:.0f}² contact points at "
               "spacing {:.3g} m",
@@ -141,6 +152,8 @@ Result<std::vector<ContactPoint>> sample_contact_points(const MatrixX3d& vertice
         p.nodes = {triangles(f, 0), triangles(f, 1), triangles(f, 2)};
         p.weights = Eigen::Vector3d(1.0 - static_cast<double>(i + j) / m,
                                     static_cast<double>(i) / m, static_cast<double>(j) / m);
+        const Eigen::Vector3d w = p.weights(0) * a + p.weights(1) * b + p.weights(2) * c - origin;
+        if ((w - w.dot(dir) * dir).norm() > reach) continue;  // the probe cannot touch it
         p.area_m2 = (corner_count == 1 ? 3.0 : 6.0) * unit;  // edge or interior lattice point
         p.face = static_cast<int>(f);
         lattice.push_back(p);

@@ -652,6 +652,61 @@ Status CorotationalFem::solve(const MatrixX3d& external_forces, const Eigen::Vec
   return {};
 }
 
+Status CorotationalFem::solve_preconditioned(const Eigen::VectorXd& extra_rhs, int max_iterations,
+                                             double relative_tolerance, bool* converged,
+                                             int* iterations) {
+  Impl& s = *impl_;
+  *converged = false;
+  if (iterations != nullptr) *iterations = 0;
+  const Eigen::Index ndof = num_free_dofs();
+  if (extra_rhs.size() != 0 && extra_rhs.size() != ndof) {
+    return invalid_argument("FEM: extra right-hand side has the wrong length");
+  }
+  if (!s.cholesky.factorized() || ndof == 0) return {};
+  Eigen::VectorXd b = s.rhs;
+  if (extra_rhs.size() != 0) b += extra_rhs;
+  const Eigen::Index n = num_nodes();
+  Eigen::VectorXd x(ndof);
+  for (Eigen::Index i = 0; i < n; ++i) {
+    const int f = s.free_index[static_cast<size_t>(i)];
+    if (f >= 0) x.segment<3>(3 * f) = s.x.row(i).transpose();
+  }
+  const auto k = s.k.selfadjointView<Eigen::Upper>();
+  Eigen::VectorXd r = b - k * x;
+  Eigen::VectorXd z;
+  HC_RETURN_IF_ERROR(s.cholesky.solve(r, &z));
+  double rz = r.dot(z);
+  const double stop = relative_tolerance * relative_tolerance * rz;
+  Eigen::VectorXd p = z, kp(ndof);
+  int it = 0;
+  bool done = !(rz > 0);  // already the solution
+  for (; !done && it < max_iterations; ++it) {
+    kp.noalias() = k * p;
+    const double pkp = p.dot(kp);
+    if (!(pkp > 0) || !std::isfinite(pkp)) break;  // K not positive definite along p
+    const double alpha = rz / pkp;
+    x += alpha * p;
+    r -= alpha * kp;
+    HC_RETURN_IF_ERROR(s.cholesky.solve(r, &z));
+    const double rz_next = r.dot(z);
+    if (rz_next <= stop) {
+      done = true;
+      ++it;
+      break;
+    }
+    p = z + (rz_next / rz) * p;
+    rz = rz_next;
+  }
+  if (iterations != nullptr) *iterations = it;
+  if (!done || !x.allFinite()) return {};
+  for (Eigen::Index i = 0; i < n; ++i) {
+    const int f = s.free_index[static_cast<size_t>(i)];
+    if (f >= 0) s.x.row(i) = x.segment<3>(3 * f).transpose();
+  }
+  *converged = true;
+  return {};
+}
+
 Status CorotationalFem::step(const MatrixX3d& external_forces) {
   update_rotations();
   assemble();

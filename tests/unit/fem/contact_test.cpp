@@ -1,6 +1,7 @@
 // Probes (distance fields), penalty contact under depth and force control, incremental loading, and
 // the analytic indentation/cantilever cases with their convergence.
 #include "processing/fem/contact.h"
+#include "processing/fem/contact_surface.h"
 
 #include <gtest/gtest.h>
 
@@ -87,6 +88,38 @@ struct Block {
 // nodes are under the face by more than their 0.06 mm distance to the side wall as soon as the
 // punch is 0.06 mm deep. When inside points took the nearest surface's normal they were pushed
 // sideways by the wall, F(d) dropped as they entered, and force control failed on the jump.
+// A face far larger than the probe (a box's top, two triangles 0.4 m across, under a 2.5 mm punch)
+// is split into contact points only within reach of the probe's axis, and a face turned away from
+// the probe's travel (the base) not at all: was "more than 4000000 contact points".
+TEST(ContactSampling, LargeFacesAreSplitOnlyWithinReach) {
+  MatrixX3d v(8, 3);
+  v << 0, 0, 0, 0.4, 0, 0, 0.4, 0.4, 0, 0, 0.4, 0,  // base
+      0, 0, 0.2, 0.4, 0, 0.2, 0.4, 0.4, 0.2, 0, 0.4, 0.2;  // top
+  MatrixX3i t(4, 3);
+  t << 0, 2, 1, 0, 3, 2,  // base, outward normal -z
+      4, 5, 6, 4, 6, 7;   // top, +z
+  auto punch = make_flat_probe(0.0025, Eigen::Vector3d(0.2, 0.2, 0.2005), -Eigen::Vector3d::UnitZ());
+  ASSERT_TRUE(punch.ok());
+  auto points = sample_contact_points(v, t, **punch);
+  ASSERT_TRUE(points.ok()) << points.status().to_string();
+  // Reach: 1.5 x the punch's lateral extent (its bounding box's corner, sqrt(2) r) from the axis.
+  const double reach = 1.5 * std::sqrt(2.0) * 0.0025;
+  std::size_t on_top = 0;
+  for (const ContactPoint& p : *points) {
+    if (p.is_node()) continue;
+    ASSERT_GE(p.face, 2) << "a point on the base, which faces away from the punch";
+    const Eigen::Vector3d x = p.weights(0) * v.row(p.nodes[0]).transpose() +
+                              p.weights(1) * v.row(p.nodes[1]).transpose() +
+                              p.weights(2) * v.row(p.nodes[2]).transpose();
+    EXPECT_LE(std::hypot(x.x() - 0.2, x.y() - 0.2), reach + 1e-12);
+    ++on_top;
+  }
+  // Spacing r/8 along the 0.566 m diagonal: m = 1,811 subdivisions, so legs of 0.4 / m and a point
+  // per 0.5 (0.4 / m)^2 of area; the disk of radius `reach` holds about 1,800.
+  EXPECT_GT(on_top, 1500U);
+  EXPECT_LT(on_top, 2200U);
+}
+
 TEST(Contact, FlatPunchForceControlWithRimNodesInContact) {
   Block b;
   auto fem = CorotationalFem::create(b.mesh, nodes_on_plane(b.mesh, 2, -0.02, 1e-12));

@@ -1,6 +1,6 @@
 // A scene without mesh keys is meshed for its contact (contact_meshing.h) and answers the closed
-// forms of ANALYTIC_BENCHMARKS.md within 8 % on default settings (the issue's target is 5 %; the
-// measured errors are next to the tests); explicit coarse meshes still
+// forms of ANALYTIC_BENCHMARKS.md within 5 % on default settings (the measured errors are next to
+// the tests); explicit coarse meshes still
 // answer (contact points on the faces keep the probe from slipping between nodes) and converge
 // as they are refined.
 #include <gtest/gtest.h>
@@ -55,12 +55,14 @@ Result<SimulationResult> run(const nlohmann::json& j) {
   return simulate(s);
 }
 
-// A block 80 contact radii wide and 40 deep, for the half-space formulas. At 10 radii deep (the
-// issue's minimum) the fixed base stiffens the answer by the finite-layer effect (Hayes et al. 1972,
-// ANALYTIC_BENCHMARKS.md §3), not by the mesh: measured here with the same meshing, flat punches
-// at a/h = 0.1 gave +9.7 / +14.4 / +9.7 % and spheres at a/h = 0.045-0.075 +4.2 / +9.1 / +9.8 %.
+// A block 160 contact radii wide and 80 deep, for the half-space formulas. A fixed base stiffens
+// the answer by the finite-layer effect (Hayes et al. 1972, ANALYTIC_BENCHMARKS.md §3), not by the
+// mesh: measured here with the same meshing, flat punches at 10 radii deep (a/h = 0.1, the issue's
+// minimum) gave +9.7 / +14.4 / +9.7 %, spheres at a/h = 0.045-0.075 +4.2 / +9.1 / +9.8 %, and the
+// third sphere below still +2.2 % more at 40 radii deep than at 80 (0.33644 against 0.32919 N).
+// The graded mesh grows coarse away from the contact, so the larger block costs few tets.
 Eigen::Vector3d half_space_block(double contact_radius) {
-  return Eigen::Vector3d(80, 80, 40) * contact_radius;
+  return Eigen::Vector3d(160, 160, 80) * contact_radius;
 }
 
 struct Case {
@@ -68,17 +70,16 @@ struct Case {
 };
 
 // The accuracy on default settings, measured with these cases (Release, this machine,
-// `ctest -R ContactDefaults --output-on-failure`): spheres +3.4 / +5.3 / +6.3 %, punches
-// +0.3 / +4.4 / +1.9 %, ~42k tets each. The issue asks for 5 %; what remains is the contact edge
-// resolved to about half an element (elements a/4 at the patch; a punch's force is proportional to
-// its contact radius) and the linear tets' stiffness in the graded mid-field (growth 0.3 -> 0.15
-// took the second sphere from +5.3 to +3.5 % at twice the tets). The bound below holds these
-// within 8 % until that is closed.
-constexpr double kDefaultSettingsTolerance = 0.08;
+// `ctest -R ContactDefaults --output-on-failure`): spheres +2.5 / +4.6 / +4.6 %, punches
+// +0.6 / +4.8 / +2.2 %, ~43k tets each. What remains is the contact edge resolved to about half an
+// element (elements a/4 at the patch; a punch's force is proportional to its contact radius) and
+// the linear tets' stiffness in the graded mid-field (growth 0.3 -> 0.2 took the issue's sphere
+// from +3.4 to +1.5 % at 40 radii deep, at 1.4x the tets).
+constexpr double kDefaultSettingsTolerance = 0.05;
 
 // Three sets each: the issue's (0.5 MPa, 0.4, R 10 mm, d 0.5 mm: a 2.2 mm, Hertz 0.887 N) and two
 // others.
-TEST(ContactDefaults, SphereWithinEightPercentOfSneddon) {
+TEST(ContactDefaults, SphereWithinFivePercentOfSneddon) {
   HC_SKIP_WHEN_SANITIZED("~10x slower: ~40k-tet contact solves");
   const Case cases[] = {{0.5e6, 0.4, 0.01, 5e-4}, {2e6, 0.3, 0.005, 2e-4}, {50e3, 0.25, 0.02, 1e-3}};
   for (const Case& c : cases) {
@@ -95,7 +96,7 @@ TEST(ContactDefaults, SphereWithinEightPercentOfSneddon) {
   }
 }
 
-TEST(ContactDefaults, FlatPunchWithinEightPercentOfSneddon) {
+TEST(ContactDefaults, FlatPunchWithinFivePercentOfSneddon) {
   HC_SKIP_WHEN_SANITIZED("~10x slower: ~40k-tet contact solves");
   const Case cases[] = {{1e6, 0.3, 0.0025, 2.5e-5}, {0.2e6, 0.45, 0.005, 1e-4}, {3e6, 0.35, 0.002, 1e-5}};
   for (const Case& c : cases) {

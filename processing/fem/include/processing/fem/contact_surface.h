@@ -72,8 +72,11 @@ struct ContactSamplingOptions {
 
 // Samples the triangle surface (vertices #V by 3, triangles #F by 3) for contact with `probe` at
 // its pose, moving along its direction: one point per vertex used by a triangle (area = its share
-// of the lattice weights of its triangles) and the edge and interior lattice points of the
-// reachable triangles that are longer than split_above_m. invalid_argument for bad indices or
+// of the lattice weights of its triangles) and those edge and interior lattice points within
+// reach_m of the probe's axis, on the reachable triangles that are longer than split_above_m:
+// within reach_m of the axis and not facing away from its travel (the triangles are oriented outward; a probe cannot touch a face
+// whose outward normal points along its direction, such as a fixed base under it, before passing
+// through the body). invalid_argument for bad indices or
 // options; resource_exhausted-style invalid_argument when more than max_points would be made.
 Result<std::vector<ContactPoint>> sample_contact_points(const MatrixX3d& vertices,
                                                         const MatrixX3i& triangles,

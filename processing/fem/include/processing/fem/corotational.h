@@ -181,6 +181,17 @@ class CorotationalFem {
   // targets).
   Status solve(const MatrixX3d& external_forces, const Eigen::VectorXd& extra_rhs);
 
+  // Solves the system of solve(zero forces, extra_rhs) with the assembled K's current values by
+  // conjugate gradients, preconditioned by the last factorisation (of an earlier K of this model:
+  // between equilibrium iterations the rotations and contact terms change K little, and a few
+  // iterations, each a product with K and one solve with the factor, cost less than a numeric
+  // factorisation), starting from the current positions. Stops when the preconditioned residual
+  // norm is below relative_tolerance times its value at the start; *converged is false, and the
+  // positions are unchanged, when max_iterations do not reach that or there is no factorisation.
+  Status solve_preconditioned(const Eigen::VectorXd& extra_rhs, int max_iterations,
+                              double relative_tolerance, bool* converged,
+                              int* iterations = nullptr);
+
   // One co-rotational static step: update_rotations(), assemble(), factorize(), solve(F).
   Status step(const MatrixX3d& external_forces);
   // Iterates step() until the largest position change is below tolerance_m (or max_iterations).
