@@ -21,6 +21,8 @@ constexpr int kFreezeAfter = 20;
 // iteration's own tolerance is on position changes, orders of magnitude coarser).
 constexpr int kReuseIterations = 20;
 constexpr double kReuseTolerance = 1e-6;
+// The predictor extrapolates at most this many times the last depth step.
+constexpr double kMaxExtrapolation = 2.0;
 }  // namespace
 
 
@@ -58,6 +60,9 @@ struct ContactSolver::Impl {
   double penalty = 0;  // mean stiffness of the node points (what penalty_n_per_m() reports)
   double max_step = 0;      // largest probe advance per sub-step
   double solved_depth = 0;  // depth of the state fem currently holds
+  // The last two equilibria (positions and depths) for a linear predictor of the next one.
+  MatrixX3d x_last, x_before;
+  double depth_before = -1;
   const MaterialModel* material = nullptr;
   MatrixX3d contact_forces;
   // Last converged (depth, force) pairs for force-control initial guesses.
@@ -155,6 +160,13 @@ Status ContactSolver::Impl::solve_depth(double depth, ContactSummary* s) {
 }
 
 Status ContactSolver::Impl::solve_depth_once(double depth, ContactSummary* s) {
+  // Start from the line through the last two equilibria when fem still holds the last one and the
+  // depth goes on the same way: the equilibrium iteration then starts near its answer.
+  if (depth_before >= 0 && x_last.rows() == fem->num_nodes() && fem->positions() == x_last &&
+      (depth - solved_depth) * (solved_depth - depth_before) > 0) {
+    const double t = (depth - solved_depth) / (solved_depth - depth_before);
+    if (t <= kMaxExtrapolation) HC_RETURN_IF_ERROR(fem->set_positions(x_last + t * (x_last - x_before)));
+  }
   probe->set_pose(start_pose);
   probe->advance(travel + depth);
   const Eigen::Index n = fem->num_nodes();
@@ -282,6 +294,9 @@ Status ContactSolver::Impl::solve_depth_once(double depth, ContactSummary* s) {
   }
   last_depth = depth;
   last_force = force;
+  x_before = std::move(x_last);
+  x_last = fem->positions();
+  depth_before = x_before.rows() > 0 ? solved_depth : -1;
   solved_depth = depth;
   return {};
 }
