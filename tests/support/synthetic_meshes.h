@@ -52,26 +52,28 @@ inline void flip(TriangleMesh* m, Eigen::Index t) {
 
 // Signed volume enclosed by a closed, outward-oriented mesh (divergence theorem: the sum of the
 // signed tetrahedra from the origin to each triangle).
+// Calls fn(a, b, c) with the corners of each triangle.
+template <class Fn>
+void for_each_triangle(const TriangleMesh& m, Fn&& fn) {
+  for (Eigen::Index t = 0; t < m.num_triangles(); ++t) {
+    fn(Eigen::Vector3d(m.vertices.row(m.triangles(t, 0))),
+       Eigen::Vector3d(m.vertices.row(m.triangles(t, 1))),
+       Eigen::Vector3d(m.vertices.row(m.triangles(t, 2))));
+  }
+}
+
 inline double signed_volume(const TriangleMesh& m) {
   double v = 0.0;
-  for (Eigen::Index t = 0; t < m.num_triangles(); ++t) {
-    const Eigen::Vector3d a = m.vertices.row(m.triangles(t, 0));
-    const Eigen::Vector3d b = m.vertices.row(m.triangles(t, 1));
-    const Eigen::Vector3d c = m.vertices.row(m.triangles(t, 2));
-    v += a.dot(b.cross(c)) / 6.0;
-  }
+  for_each_triangle(m, [&](const Eigen::Vector3d& a, const Eigen::Vector3d& b,
+                           const Eigen::Vector3d& c) { v += a.dot(b.cross(c)) / 6.0; });
   return v;
 }
 
 // Surface area of a mesh: the sum of its triangles' areas.
 inline double surface_area(const TriangleMesh& m) {
   double area = 0.0;
-  for (Eigen::Index t = 0; t < m.num_triangles(); ++t) {
-    const Eigen::Vector3d a = m.vertices.row(m.triangles(t, 0));
-    const Eigen::Vector3d b = m.vertices.row(m.triangles(t, 1));
-    const Eigen::Vector3d c = m.vertices.row(m.triangles(t, 2));
-    area += 0.5 * (b - a).cross(c - a).norm();
-  }
+  for_each_triangle(m, [&](const Eigen::Vector3d& a, const Eigen::Vector3d& b,
+                           const Eigen::Vector3d& c) { area += 0.5 * (b - a).cross(c - a).norm(); });
   return area;
 }
 
