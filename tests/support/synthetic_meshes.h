@@ -72,8 +72,10 @@ inline double signed_volume(const TriangleMesh& m) {
 // Surface area of a mesh: the sum of its triangles' areas.
 inline double surface_area(const TriangleMesh& m) {
   double area = 0.0;
-  for_each_triangle(m, [&](const Eigen::Vector3d& a, const Eigen::Vector3d& b,
-                           const Eigen::Vector3d& c) { area += 0.5 * (b - a).cross(c - a).norm(); });
+  for_each_triangle(
+      m, [&](const Eigen::Vector3d& a, const Eigen::Vector3d& b, const Eigen::Vector3d& c) {
+        area += 0.5 * (b - a).cross(c - a).norm();
+      });
   return area;
 }
 

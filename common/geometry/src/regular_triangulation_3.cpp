@@ -12,10 +12,10 @@
 #include <CGAL/Regular_triangulation_vertex_base_3.h>
 #include <CGAL/Spatial_lock_grid_3.h>
 #include <CGAL/Spatial_sort_traits_adapter_3.h>
-#include <CGAL/hilbert_sort.h>
-#include <CGAL/property_map.h>
 #include <CGAL/Triangulation_cell_base_with_info_3.h>
 #include <CGAL/Triangulation_vertex_base_with_info_3.h>
+#include <CGAL/hilbert_sort.h>
+#include <CGAL/property_map.h>
 #include <fmt/format.h>
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>

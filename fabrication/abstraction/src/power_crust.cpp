@@ -485,8 +485,9 @@ Result<TriangleMesh> crust_with_perturbation(const Balls3& balls, std::uint64_t 
                                              CrustSummary* sum) {
   const std::vector<double> w = power_weights(balls, seed);
   // The crust's vertices are the power vertices of cells between interior and exterior balls.
-  HC_ASSIGN_OR_RETURN(geometry::Triangulation3 rt,
-                      geometry::triangulate_3d(balls.centres, w, {.centres_between = balls.interior}));
+  HC_ASSIGN_OR_RETURN(
+      geometry::Triangulation3 rt,
+      geometry::triangulate_3d(balls.centres, w, {.centres_between = balls.interior}));
   sum->hidden_balls = 0;
   for (const auto v : rt.is_vertex) sum->hidden_balls += v ? 0 : 1;
   TriangleMesh mesh;

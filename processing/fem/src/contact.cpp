@@ -165,7 +165,8 @@ Status ContactSolver::Impl::solve_depth_once(double depth, ContactSummary* s) {
   if (depth_before >= 0 && x_last.rows() == fem->num_nodes() && fem->positions() == x_last &&
       (depth - solved_depth) * (solved_depth - depth_before) > 0) {
     const double t = (depth - solved_depth) / (solved_depth - depth_before);
-    if (t <= kMaxExtrapolation) HC_RETURN_IF_ERROR(fem->set_positions(x_last + t * (x_last - x_before)));
+    if (t <= kMaxExtrapolation)
+      HC_RETURN_IF_ERROR(fem->set_positions(x_last + t * (x_last - x_before)));
   }
   probe->set_pose(start_pose);
   probe->advance(travel + depth);

@@ -671,6 +671,9 @@ Status CorotationalFem::solve_preconditioned(const Eigen::VectorXd& extra_rhs, i
     const int f = s.free_index[static_cast<size_t>(i)];
     if (f >= 0) x.segment<3>(3 * f) = s.x.row(i).transpose();
   }
+  // Written out rather than Eigen's ConjugateGradient: that stops on the residual relative to b,
+  // and here the warm start leaves an increment a millionth of the positions, so the test must be
+  // relative to the starting residual; the preconditioner is CHOLMOD's factor.
   const auto k = s.k.selfadjointView<Eigen::Upper>();
   Eigen::VectorXd r = b - k * x;
   Eigen::VectorXd z;

@@ -204,8 +204,9 @@ TEST(AbstractionSuite, BooleansAgreeWithCorefinementOnTheCorpus) {
   //
   // Where a crust is not a valid solid boolean_3d returns the exact corefinement
   // (summary.exact_fallback); the test prints how many (0 of 24 with the samples in Hilbert
-  // order; 1, example001's intersection, with the perturbation their earlier order gave). About 2 minutes in Release: the default
-  // run covers booleans with Boolean3d.* (analytic cubes and spheres, degenerate contacts).
+  // order; 1, example001's intersection, with the perturbation their earlier order gave). About 2
+  // minutes in Release: the default run covers booleans with Boolean3d.* (analytic cubes and
+  // spheres, degenerate contacts).
   HC_LONG_TEST_ONLY("about 2 minutes in Release");
   int tested = 0, fallbacks = 0;
   for (const auto& path : sweep_meshes()) {

@@ -93,12 +93,13 @@ struct Block {
 // the probe's travel (the base) not at all: was "more than 4000000 contact points".
 TEST(ContactSampling, LargeFacesAreSplitOnlyWithinReach) {
   MatrixX3d v(8, 3);
-  v << 0, 0, 0, 0.4, 0, 0, 0.4, 0.4, 0, 0, 0.4, 0,  // base
+  v << 0, 0, 0, 0.4, 0, 0, 0.4, 0.4, 0, 0, 0.4, 0,         // base
       0, 0, 0.2, 0.4, 0, 0.2, 0.4, 0.4, 0.2, 0, 0.4, 0.2;  // top
   MatrixX3i t(4, 3);
   t << 0, 2, 1, 0, 3, 2,  // base, outward normal -z
       4, 5, 6, 4, 6, 7;   // top, +z
-  auto punch = make_flat_probe(0.0025, Eigen::Vector3d(0.2, 0.2, 0.2005), -Eigen::Vector3d::UnitZ());
+  auto punch =
+      make_flat_probe(0.0025, Eigen::Vector3d(0.2, 0.2, 0.2005), -Eigen::Vector3d::UnitZ());
   ASSERT_TRUE(punch.ok());
   auto points = sample_contact_points(v, t, **punch);
   ASSERT_TRUE(points.ok()) << points.status().to_string();

@@ -181,9 +181,9 @@ TEST(Corotational, EquilibriumSolveBalancesForces) {
 // reach the direct solve's positions; without a factorisation, or in too few iterations, they
 // report no convergence and leave the positions alone.
 TEST(Corotational, PreconditionedSolveMatchesTheDirectSolve) {
-  const TetMesh mesh = structured_box_mesh(uniform_coordinates(0, 0.04, 8),
-                                           uniform_coordinates(0, 0.01, 2),
-                                           uniform_coordinates(0, 0.01, 2));
+  const TetMesh mesh =
+      structured_box_mesh(uniform_coordinates(0, 0.04, 8), uniform_coordinates(0, 0.01, 2),
+                          uniform_coordinates(0, 0.01, 2));
   auto fem = CorotationalFem::create(mesh, nodes_on_plane(mesh, 0, 0.0, 1e-12));
   ASSERT_TRUE(fem.ok());
   fem->set_uniform_params(lambda_alpha_from_youngs_poisson(1e6, 0.3));

@@ -59,12 +59,12 @@ Result<Polygon2> power_crust_2d(const Balls2& balls, CrustSummary* summary = nul
 Result<TriangleMesh> power_crust_3d(const Balls3& balls, CrustSummary* summary = nullptr);
 
 // The crust of a regular triangulation of `balls` already built (weights power_weights; centres
-// needed at least between interior and exterior balls: Triangulate3Options::centres_between), unchecked;
-// what power_crust_3d runs before its checks. With balls.defining set, a power vertex whose four
-// balls share a sample is placed on that sample (the nearest such, if several), vertices at the
-// same position are merged, triangles that lose a corner are dropped and opposite pairs cancel.
-// Samples in `no_snap` are not snapped to, and vertices near a `no_merge` point are not merged
-// (power_crust_3d retries with the samples and points where a crust touched itself).
+// needed at least between interior and exterior balls: Triangulate3Options::centres_between),
+// unchecked; what power_crust_3d runs before its checks. With balls.defining set, a power vertex
+// whose four balls share a sample is placed on that sample (the nearest such, if several), vertices
+// at the same position are merged, triangles that lose a corner are dropped and opposite pairs
+// cancel. Samples in `no_snap` are not snapped to, and vertices near a `no_merge` point are not
+// merged (power_crust_3d retries with the samples and points where a crust touched itself).
 Result<TriangleMesh> crust_faces_3d(const geometry::Triangulation3& rt, const Balls3& balls,
                                     const std::vector<std::uint8_t>& no_snap = {},
                                     const std::vector<Eigen::Vector3d>& no_merge = {});

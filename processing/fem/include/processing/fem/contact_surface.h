@@ -72,12 +72,13 @@ struct ContactSamplingOptions {
 
 // Samples the triangle surface (vertices #V by 3, triangles #F by 3) for contact with `probe` at
 // its pose, moving along its direction: one point per vertex used by a triangle (area = its share
-// of the lattice weights of its triangles) and those edge and interior lattice points within
-// reach_m of the probe's axis, on the reachable triangles that are longer than split_above_m:
-// within reach_m of the axis and not facing away from its travel (the triangles are oriented outward; a probe cannot touch a face
-// whose outward normal points along its direction, such as a fixed base under it, before passing
-// through the body). invalid_argument for bad indices or
-// options; resource_exhausted-style invalid_argument when more than max_points would be made.
+// of the lattice weights of its triangles) and, on the reachable triangles longer than
+// split_above_m, the edge and interior lattice points within reach_m of the probe's axis. A
+// triangle is reachable when it comes within reach_m of the axis and does not face away from the
+// probe's travel (triangles are oriented outward; a probe cannot touch a face whose outward normal
+// points along its direction, such as a fixed base under it, before passing through the body).
+// invalid_argument for bad indices or options; resource_exhausted-style invalid_argument when more
+// than max_points would be made.
 Result<std::vector<ContactPoint>> sample_contact_points(const MatrixX3d& vertices,
                                                         const MatrixX3i& triangles,
                                                         const Probe& probe,
