@@ -21,6 +21,11 @@ constexpr int kFreezeAfter = 20;
 // iteration's own tolerance is on position changes, orders of magnitude coarser).
 constexpr int kReuseIterations = 20;
 constexpr double kReuseTolerance = 1e-6;
+// A preconditioned solve that needed more than this many iterations shows the factorisation has
+// gone stale (after a fresh one they take about 3): the next iteration factorises directly.
+// Default Hertz scene (bench_fem_step): never 6.26 s, above 12 5.71 s, above 8 5.57 s, above 5
+// 5.46 s, above 3 5.71 s; the same force each time.
+constexpr int kRefactorAbove = 5;
 // The predictor extrapolates at most this many times the last depth step.
 constexpr double kMaxExtrapolation = 2.0;
 }  // namespace
@@ -63,6 +68,7 @@ struct ContactSolver::Impl {
   // The last two equilibria (positions and depths) for a linear predictor of the next one.
   MatrixX3d x_last, x_before;
   double depth_before = -1;
+  int last_cg_iterations = 0;  // of the last preconditioned solve (0 after a factorisation)
   const MaterialModel* material = nullptr;
   MatrixX3d contact_forces;
   // Last converged (depth, force) pairs for force-control initial guesses.
@@ -247,9 +253,12 @@ Status ContactSolver::Impl::solve_depth_once(double depth, ContactSummary* s) {
     // The factorisation of an earlier iteration (or depth) preconditions conjugate gradients on
     // this one's K; K is factorised again only when that does not converge in a few iterations.
     bool solved = false;
-    HC_RETURN_IF_ERROR(
-        fem->solve_preconditioned(extra, kReuseIterations, kReuseTolerance, &solved));
+    if (last_cg_iterations <= kRefactorAbove) {
+      HC_RETURN_IF_ERROR(fem->solve_preconditioned(extra, kReuseIterations, kReuseTolerance,
+                                                   &solved, &last_cg_iterations));
+    }
     if (!solved) {
+      last_cg_iterations = 0;
       HC_RETURN_IF_ERROR(fem->factorize());
       HC_RETURN_IF_ERROR(fem->solve(zero, extra));
     }
