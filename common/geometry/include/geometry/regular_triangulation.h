@@ -67,8 +67,8 @@ Result<Triangulation3> triangulate_3d(std::span<const Eigen::Vector3d> points,
 // The indices of `points` in their order along a Hilbert curve (CGAL::hilbert_sort, median
 // policy; deterministic). Points in this order keep neighbours near each other in memory, and so
 // does everything built from them in their order: the triangulations above, the balls and crust of
-// fabrication/abstraction (on bench_abstraction's 100k samples the crust ran 0.62 -> 0.44 s and its
-// check 1.09 -> 0.80 s with the samples in this order).
+// fabrication/abstraction (on bench_abstraction's 100k samples the crust ran 0.62 -> 0.44 s and the
+// power vertices 0.22 -> 0.13 s with the samples in this order).
 std::vector<std::size_t> spatial_order(std::span<const Eigen::Vector3d> points);
 
 // For each query point, the smallest power distance |q - c_i|^2 - w_i over the weighted points
