@@ -106,6 +106,10 @@ Result<std::vector<ContactPoint>> sample_contact_points(const MatrixX3d& vertice
   const double reach = options.reach_m > 0 ? options.reach_m : 1.5 * lateral;
   const Eigen::Vector3d origin = probe.pose().translation();
   const Eigen::Vector3d dir = probe.direction();
+  const auto from_axis = [&](const Eigen::Vector3d& p) {
+    const Eigen::Vector3d w = p - origin;
+    return (w - w.dot(dir) * dir).norm();
+  };
 
   std::vector<double> vertex_area(static_cast<std::size_t>(nv), 0.0);
   std::vector<int> vertex_face(static_cast<std::size_t>(nv), -1);
@@ -121,11 +125,10 @@ Result<std::vector<ContactPoint>> sample_contact_points(const MatrixX3d& vertice
       const Eigen::Vector3d centre = (a + b + c) / 3.0;
       const double radius =
           std::max({(a - centre).norm(), (b - centre).norm(), (c - centre).norm()});
-      const Eigen::Vector3d w = centre - origin;
       // A triangle facing away from the probe's travel (outward normal along it: a fixed base
       // under the probe's axis) cannot be touched before the probe has passed through the body.
       const bool facing_away = (b - a).cross(c - a).dot(dir) > 0;
-      if (!facing_away && (w - w.dot(dir) * dir).norm() - radius <= reach) {
+      if (!facing_away && from_axis(centre) - radius <= reach) {
         const double mm = std::ceil(longest / spacing);
         // Only the lattice points within reach are kept (below), so a triangle much larger than
         // the probe (a box's face under a small punch: 1,811² points) costs a loop, not memory;
@@ -152,8 +155,9 @@ Result<std::vector<ContactPoint>> sample_contact_points(const MatrixX3d& vertice
         p.nodes = {triangles(f, 0), triangles(f, 1), triangles(f, 2)};
         p.weights = Eigen::Vector3d(1.0 - static_cast<double>(i + j) / m,
                                     static_cast<double>(i) / m, static_cast<double>(j) / m);
-        const Eigen::Vector3d w = p.weights(0) * a + p.weights(1) * b + p.weights(2) * c - origin;
-        if ((w - w.dot(dir) * dir).norm() > reach) continue;  // the probe cannot touch it
+        if (from_axis(p.weights(0) * a + p.weights(1) * b + p.weights(2) * c) > reach) {
+          continue;  // the probe cannot touch it
+        }
         p.area_m2 = (corner_count == 1 ? 3.0 : 6.0) * unit;  // edge or interior lattice point
         p.face = static_cast<int>(f);
         lattice.push_back(p);

@@ -113,7 +113,47 @@ struct CorotationalFem::Impl {
   Status set_rest_geometry();
   Status number_free_nodes(const std::vector<int>& fixed_in, const std::vector<char>& used);
   Status build_pattern();
+
+  // The right-hand side rhs + extra (+ the free nodes' external forces when given); extra is
+  // empty or one entry per free dof.
+  Result<Eigen::VectorXd> load(const MatrixX3d* external_forces,
+                               const Eigen::VectorXd& extra) const;
+  // The free nodes' positions as a vector over the free dofs, and back.
+  Eigen::VectorXd free_positions() const;
+  void set_free_positions(const Eigen::VectorXd& v);
 };
+
+Result<Eigen::VectorXd> CorotationalFem::Impl::load(const MatrixX3d* external_forces,
+                                                    const Eigen::VectorXd& extra) const {
+  if (extra.size() != 0 && extra.size() != 3 * num_free) {
+    return invalid_argument("FEM: extra right-hand side has the wrong length");
+  }
+  Eigen::VectorXd b = rhs;
+  if (extra.size() != 0) b += extra;
+  if (external_forces != nullptr) {
+    for (Eigen::Index i = 0; i < external_forces->rows(); ++i) {
+      const int f = free_index[static_cast<size_t>(i)];
+      if (f >= 0) b.segment<3>(3 * f) += external_forces->row(i).transpose();
+    }
+  }
+  return b;
+}
+
+Eigen::VectorXd CorotationalFem::Impl::free_positions() const {
+  Eigen::VectorXd v(3 * num_free);
+  for (Eigen::Index i = 0; i < x.rows(); ++i) {
+    const int f = free_index[static_cast<size_t>(i)];
+    if (f >= 0) v.segment<3>(3 * f) = x.row(i).transpose();
+  }
+  return v;
+}
+
+void CorotationalFem::Impl::set_free_positions(const Eigen::VectorXd& v) {
+  for (Eigen::Index i = 0; i < x.rows(); ++i) {
+    const int f = free_index[static_cast<size_t>(i)];
+    if (f >= 0) x.row(i) = v.segment<3>(3 * f).transpose();
+  }
+}
 
 CorotationalFem::CorotationalFem(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) {}
 CorotationalFem::CorotationalFem(CorotationalFem&&) noexcept = default;
@@ -631,24 +671,11 @@ Status CorotationalFem::solve(const MatrixX3d& external_forces, const Eigen::Vec
                             std::to_string(num_nodes()) + " nodes");
   }
   if (!external_forces.allFinite()) return invalid_argument("FEM: non-finite external forces");
-  const Eigen::Index ndof = num_free_dofs();
-  if (extra_rhs.size() != 0 && extra_rhs.size() != ndof) {
-    return invalid_argument("FEM: extra right-hand side has the wrong length");
-  }
-  Eigen::VectorXd b = s.rhs;
-  if (extra_rhs.size() != 0) b += extra_rhs;
-  const Eigen::Index n = num_nodes();
-  for (Eigen::Index i = 0; i < n; ++i) {
-    const int f = s.free_index[static_cast<size_t>(i)];
-    if (f >= 0) b.segment<3>(3 * f) += external_forces.row(i).transpose();
-  }
+  HC_ASSIGN_OR_RETURN(const Eigen::VectorXd b, s.load(&external_forces, extra_rhs));
   Eigen::VectorXd xs;
   HC_RETURN_IF_ERROR(s.cholesky.solve(b, &xs));
   if (!xs.allFinite()) return failed_precondition("FEM: solve produced non-finite positions");
-  for (Eigen::Index i = 0; i < n; ++i) {
-    const int f = s.free_index[static_cast<size_t>(i)];
-    if (f >= 0) s.x.row(i) = xs.segment<3>(3 * f).transpose();
-  }
+  s.set_free_positions(xs);
   return {};
 }
 
@@ -658,19 +685,9 @@ Status CorotationalFem::solve_preconditioned(const Eigen::VectorXd& extra_rhs, i
   Impl& s = *impl_;
   *converged = false;
   if (iterations != nullptr) *iterations = 0;
-  const Eigen::Index ndof = num_free_dofs();
-  if (extra_rhs.size() != 0 && extra_rhs.size() != ndof) {
-    return invalid_argument("FEM: extra right-hand side has the wrong length");
-  }
-  if (!s.cholesky.factorized() || ndof == 0) return {};
-  Eigen::VectorXd b = s.rhs;
-  if (extra_rhs.size() != 0) b += extra_rhs;
-  const Eigen::Index n = num_nodes();
-  Eigen::VectorXd x(ndof);
-  for (Eigen::Index i = 0; i < n; ++i) {
-    const int f = s.free_index[static_cast<size_t>(i)];
-    if (f >= 0) x.segment<3>(3 * f) = s.x.row(i).transpose();
-  }
+  HC_ASSIGN_OR_RETURN(const Eigen::VectorXd b, s.load(nullptr, extra_rhs));
+  if (!s.cholesky.factorized() || s.num_free == 0) return {};
+  Eigen::VectorXd x = s.free_positions();
   // Written out rather than Eigen's ConjugateGradient: that stops on the residual relative to b,
   // and here the warm start leaves an increment a millionth of the positions, so the test must be
   // relative to the starting residual; the preconditioner is CHOLMOD's factor.
@@ -680,7 +697,7 @@ Status CorotationalFem::solve_preconditioned(const Eigen::VectorXd& extra_rhs, i
   HC_RETURN_IF_ERROR(s.cholesky.solve(r, &z));
   double rz = r.dot(z);
   const double stop = relative_tolerance * relative_tolerance * rz;
-  Eigen::VectorXd p = z, kp(ndof);
+  Eigen::VectorXd p = z, kp(b.size());
   int it = 0;
   bool done = !(rz > 0);  // already the solution
   for (; !done && it < max_iterations; ++it) {
@@ -702,10 +719,7 @@ Status CorotationalFem::solve_preconditioned(const Eigen::VectorXd& extra_rhs, i
   }
   if (iterations != nullptr) *iterations = it;
   if (!done || !x.allFinite()) return {};
-  for (Eigen::Index i = 0; i < n; ++i) {
-    const int f = s.free_index[static_cast<size_t>(i)];
-    if (f >= 0) s.x.row(i) = x.segment<3>(3 * f).transpose();
-  }
+  s.set_free_positions(x);
   *converged = true;
   return {};
 }
