@@ -218,7 +218,30 @@ Result<ArticulateResult> articulate(const SkinnedCharacter& c, const ArticulateO
   hull_options.clearance_m = o.printer.clearance_m;
   hull_options.bump_radius_m = o.printer.bump_radius_m;
   hull_options.segments = o.hull_segments;
-  const HullFn build = [&](const Joint& j) { return build_joint_hull(j, hull_options, depth); };
+  const std::vector<int> labels = segment_by_max_weight(F.weights);
+  // A hull reaches only through its joint's own side of the tree: the parent and its ancestors,
+  // the child and its descendants. A point whose nearest surface belongs to another link (the
+  // other leg beside a knee, the other arm) counts as outside, so the hull's cut surfaces stop
+  // before a sibling limb and never slice pieces off it.
+  const HullFn build = [&](const Joint& j) {
+    std::vector<char> own(names.size(), 0);
+    for (int l = j.parent_link; l >= 0; l = parents[static_cast<std::size_t>(l)])
+      own[static_cast<std::size_t>(l)] = 1;
+    for (std::size_t l = 0; l < own.size(); ++l)
+      for (int k = static_cast<int>(l); k >= 0 && !own[l]; k = parents[static_cast<std::size_t>(k)])
+        own[l] = k == j.child_link;
+    const auto own_depth = [&](const Eigen::Vector3d& p) {
+      const double s = depth(p);
+      if (s <= 0) return s;
+      Eigen::Index t = -1;
+      distance.closest_point(p, &t);
+      for (int k = 0; k < 3; ++k)
+        if (own[static_cast<std::size_t>(labels[static_cast<std::size_t>(F.mesh.triangles(t, k))])])
+          return s;
+      return 0.0;
+    };
+    return build_joint_hull(j, hull_options, own_depth);
+  };
   std::vector<JointHull> hulls;
   CollisionOptions co;
   co.clearance_m = o.printer.clearance_m;
@@ -229,16 +252,23 @@ Result<ArticulateResult> articulate(const SkinnedCharacter& c, const ArticulateO
   exclude_unseparable_joints(contacts, static_cast<int>(c.bones.size()), &out.joints);
   watch.lap("collisions");
 
-  const std::vector<int> labels = segment_by_max_weight(F.weights);
+  // Below the volume of a cube twice the printer's smallest feature, a loose piece is a crumb.
+  const double debris_volume = std::pow(2 * o.printer.wrap_alpha_m, 3);
   for (int attempt = 0; attempt < 3; ++attempt) {
     out.carving = CarveSummary{};
     HC_ASSIGN_OR_RETURN(out.parts, carve_parts(F.mesh, labels, names, depths, out.joints, hulls,
-                                               o.progress, &out.carving));
-    if (out.carving.unseparated.empty()) break;
+                                               debris_volume, o.progress, &out.carving));
+    if (out.carving.unseparated.empty() && out.carving.severed.empty()) break;
     for (int i : out.carving.unseparated) {
       Joint& j = out.joints[static_cast<std::size_t>(i)];
       j.excluded = true;
       j.reason = "its hull did not separate the two sides (the cut left them connected)";
+    }
+    for (int i : out.carving.severed) {
+      Joint& j = out.joints[static_cast<std::size_t>(i)];
+      if (j.excluded) continue;
+      j.excluded = true;
+      j.reason = "its cut severed a piece that no joint holds (a protrusion beyond the socket)";
     }
     exclude_unseparable_joints(contacts, static_cast<int>(c.bones.size()), &out.joints);
   }

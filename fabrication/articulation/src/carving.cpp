@@ -8,6 +8,7 @@
 #include <memory>
 #include <numeric>
 
+#include "fabrication/articulation/primitives.h"
 #include "geometry/csg_sequence.h"
 #include "geometry/mesh_distance.h"
 #include "geometry/mesh_proximity.h"
@@ -33,6 +34,29 @@ struct DisjointSets {
     return true;
   }
 };
+
+// Adds to summary->severed the joints whose hull surface `piece` lies on (within 0.1 um: its
+// vertices there are the rounded exact intersection points).
+Status blame_severing_joints(const TriangleMesh& piece, const std::vector<Joint>& joints,
+                             const std::vector<JointHull>& hulls,
+                             std::vector<std::unique_ptr<geometry::MeshDistance>>* trees,
+                             CarveSummary* summary) {
+  constexpr double kOnSurface = 1e-7;
+  for (std::size_t i = 0; i < joints.size(); ++i) {
+    if (joints[i].excluded) continue;
+    if (!(*trees)[i]) {
+      HC_ASSIGN_OR_RETURN(geometry::MeshDistance d, geometry::MeshDistance::build(hulls[i].hull));
+      (*trees)[i] = std::make_unique<geometry::MeshDistance>(std::move(d));
+    }
+    bool touches = false;
+    for (Eigen::Index v = 0; v < piece.num_vertices() && !touches; ++v)
+      touches = (*trees)[i]->distance(piece.vertices.row(v).transpose()) < kOnSurface;
+    if (touches && std::find(summary->severed.begin(), summary->severed.end(),
+                             static_cast<int>(i)) == summary->severed.end())
+      summary->severed.push_back(static_cast<int>(i));
+  }
+  return {};
+}
 
 }  // namespace
 
@@ -131,7 +155,8 @@ Result<std::vector<CarvedPart>> carve_parts(const TriangleMesh& fabrication,
                                             const std::vector<int>& bone_depth,
                                             const std::vector<Joint>& joints,
                                             const std::vector<JointHull>& hulls,
-                                            ProgressReporter* progress, CarveSummary* summary) {
+                                            double debris_volume_m3, ProgressReporter* progress,
+                                            CarveSummary* summary) {
   const auto start = std::chrono::steady_clock::now();
   std::vector<geometry::CsgStep> steps;
   for (std::size_t i = 0; i < joints.size(); ++i)
@@ -149,20 +174,54 @@ Result<std::vector<CarvedPart>> carve_parts(const TriangleMesh& fabrication,
   std::vector<TriangleMesh> pieces = split_components(carved);
   summary->components = static_cast<int>(pieces.size());
 
+  // The pieces that hold a joint's probe point; the others are F's unjointed parts, or debris.
+  std::vector<std::unique_ptr<geometry::MeshProximity>> inside;
+  for (const TriangleMesh& piece : pieces) {
+    HC_ASSIGN_OR_RETURN(geometry::MeshProximity tree, geometry::MeshProximity::build(piece));
+    inside.push_back(std::make_unique<geometry::MeshProximity>(std::move(tree)));
+  }
+  const auto piece_of = [&](const Eigen::Vector3d& p) {
+    for (std::size_t k = 0; k < inside.size(); ++k)
+      if (inside[k]->contains(p)) return static_cast<int>(k);
+    return -1;
+  };
+  std::vector<bool> probed(pieces.size(), false);
+  for (std::size_t i = 0; i < joints.size(); ++i) {
+    if (joints[i].excluded) continue;
+    const int a = piece_of(child_probe(joints[i])), b = piece_of(parent_probe(joints[i]));
+    if (a < 0 || b < 0 || a == b) summary->unseparated.push_back(static_cast<int>(i));
+    for (int k : {a, b})
+      if (k >= 0) probed[static_cast<std::size_t>(k)] = true;
+  }
+
+  std::vector<std::unique_ptr<geometry::MeshDistance>> hull_trees(joints.size());
   // Which links each piece holds: the link of F's nearest vertex, by majority.
   HC_ASSIGN_OR_RETURN(const geometry::MeshDistance f_tree, geometry::MeshDistance::build(fabrication));
   std::vector<CarvedPart> parts;
-  std::vector<std::unique_ptr<geometry::MeshProximity>> inside;
-  for (TriangleMesh& piece : pieces) {
+  for (std::size_t k = 0; k < pieces.size(); ++k) {
+    TriangleMesh& piece = pieces[k];
+    // Debris: a sliver that a hull's faceted surface pinched off where it grazes F's surface.
+    // It holds no joint and would print as a loose crumb among the parts.
+    const double volume = enclosed_volume(piece);
+    if (!probed[k] && volume < debris_volume_m3) {
+      ++summary->debris_pieces;
+      summary->debris_volume_m3 += volume;
+      continue;
+    }
+    // A larger piece without a joint that a hull's surface bounds was severed by that cut (an ear
+    // beyond a neck's socket cone); pieces that touch no hull were apart in F already.
+    if (!probed[k]) {
+      HC_RETURN_IF_ERROR(blame_severing_joints(piece, joints, hulls, &hull_trees, summary));
+    }
     std::map<int, int> votes;
     for (Eigen::Index v = 0; v < piece.num_vertices(); ++v) {
       Eigen::Index t = -1;
       const Eigen::Vector3d p = f_tree.closest_point(piece.vertices.row(v).transpose(), &t);
       int best = fabrication.triangles(t, 0);
-      for (int k = 1; k < 3; ++k)
-        if ((fabrication.vertices.row(fabrication.triangles(t, k)).transpose() - p).norm() <
+      for (int c = 1; c < 3; ++c)
+        if ((fabrication.vertices.row(fabrication.triangles(t, c)).transpose() - p).norm() <
             (fabrication.vertices.row(best).transpose() - p).norm())
-          best = fabrication.triangles(t, k);
+          best = fabrication.triangles(t, c);
       ++votes[vertex_link[static_cast<std::size_t>(best)]];
     }
     CarvedPart part;
@@ -176,20 +235,8 @@ Result<std::vector<CarvedPart>> carve_parts(const TriangleMesh& fabrication,
     });
     // Named after the link most of its surface belongs to.
     part.name = top < 0 ? "part" : bone_names[static_cast<std::size_t>(top)];
-    HC_ASSIGN_OR_RETURN(geometry::MeshProximity tree, geometry::MeshProximity::build(piece));
-    inside.push_back(std::make_unique<geometry::MeshProximity>(std::move(tree)));
     part.mesh = std::move(piece);
     parts.push_back(std::move(part));
-  }
-  const auto piece_of = [&](const Eigen::Vector3d& p) {
-    for (std::size_t k = 0; k < inside.size(); ++k)
-      if (inside[k]->contains(p)) return static_cast<int>(k);
-    return -1;
-  };
-  for (std::size_t i = 0; i < joints.size(); ++i) {
-    if (joints[i].excluded) continue;
-    const int a = piece_of(child_probe(joints[i])), b = piece_of(parent_probe(joints[i]));
-    if (a < 0 || b < 0 || a == b) summary->unseparated.push_back(static_cast<int>(i));
   }
   summary->time_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   return parts;

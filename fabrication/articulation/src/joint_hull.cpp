@@ -6,7 +6,10 @@
 #include <cmath>
 #include <numbers>
 
+#include "fabrication/articulation/carving.h"
+#include "fabrication/articulation/primitives.h"
 #include "geometry/csg_sequence.h"
+#include "geometry/mesh_distance.h"
 
 namespace hc::articulation {
 namespace {
@@ -37,6 +40,28 @@ TriangleMesh small_sphere(double radius, int segments, Facet facet, const Eigen:
   return m;
 }
 
+// The hull without the solid fragments its CSG can leave apart from the mechanism: where a cut's
+// reach changes fast between neighbouring directions (along a limb), the swing wedge and the
+// child's body sector, sampled at different azimuths, leave thin islands of the wedge behind.
+// Carved out of F they would slice slivers off the parts. Kept: the largest solid and the
+// cavities inside it (the pin's gap is one).
+Result<TriangleMesh> without_fragments(const TriangleMesh& hull) {
+  std::vector<TriangleMesh> pieces = split_components(hull);
+  if (pieces.size() == 1) return hull;
+  std::vector<double> volume;
+  std::size_t main = 0;
+  for (std::size_t k = 0; k < pieces.size(); ++k) {
+    volume.push_back(enclosed_volume(pieces[k]));
+    if (volume[k] > volume[main]) main = k;
+  }
+  HC_ASSIGN_OR_RETURN(const geometry::MeshDistance solid, geometry::MeshDistance::build(pieces[main]));
+  std::vector<TriangleMesh> kept{pieces[main]};
+  for (std::size_t k = 0; k < pieces.size(); ++k)
+    if (k != main && volume[k] < 0 && solid.inside(pieces[k].vertices.row(0).transpose()))
+      kept.push_back(std::move(pieces[k]));
+  return concatenated(kept);
+}
+
 // Evaluates the hull's CSG in the joint's frame and moves it to the world.
 Result<TriangleMesh> evaluate(const TriangleMesh& base, std::vector<CsgStep> steps,
                               const LocalFrame& frame) {
@@ -52,6 +77,7 @@ Result<TriangleMesh> evaluate(const TriangleMesh& base, std::vector<CsgStep> ste
   if (summary.self_intersecting_pairs_after_rounding > 0)
     return internal_error(fmt::format("joint hull: rounding left {} self-intersecting pairs",
                                       summary.self_intersecting_pairs_after_rounding));
+  HC_ASSIGN_OR_RETURN(local, without_fragments(local));
   return transformed(local, frame);
 }
 
