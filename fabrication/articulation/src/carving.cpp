@@ -149,14 +149,11 @@ Eigen::Vector3d parent_probe(const Joint& j) {
   return j.centre;
 }
 
-Result<std::vector<CarvedPart>> carve_parts(const TriangleMesh& fabrication,
-                                            const std::vector<int>& vertex_link,
-                                            const std::vector<std::string>& bone_names,
-                                            const std::vector<int>& bone_depth,
-                                            const std::vector<Joint>& joints,
-                                            const std::vector<JointHull>& hulls,
-                                            double debris_volume_m3, ProgressReporter* progress,
-                                            CarveSummary* summary) {
+Result<std::vector<CarvedPart>> carve_parts(
+    const TriangleMesh& fabrication, const std::vector<int>& vertex_link,
+    const std::vector<std::string>& bone_names, const std::vector<int>& bone_depth,
+    const std::vector<Joint>& joints, const std::vector<JointHull>& hulls, double debris_volume_m3,
+    ProgressReporter* progress, CarveSummary* summary) {
   const auto start = std::chrono::steady_clock::now();
   std::vector<geometry::CsgStep> steps;
   for (std::size_t i = 0; i < joints.size(); ++i)

@@ -54,7 +54,8 @@ Result<TriangleMesh> without_fragments(const TriangleMesh& hull) {
     volume.push_back(enclosed_volume(pieces[k]));
     if (volume[k] > volume[main]) main = k;
   }
-  HC_ASSIGN_OR_RETURN(const geometry::MeshDistance solid, geometry::MeshDistance::build(pieces[main]));
+  HC_ASSIGN_OR_RETURN(const geometry::MeshDistance solid,
+                      geometry::MeshDistance::build(pieces[main]));
   std::vector<TriangleMesh> kept{pieces[main]};
   for (std::size_t k = 0; k < pieces.size(); ++k)
     if (k != main && volume[k] < 0 && solid.inside(pieces[k].vertices.row(0).transpose()))

@@ -34,9 +34,9 @@ struct CarvedPart {
 };
 
 struct CarveSummary {
-  int components = 0;              // of the carved mesh, debris included
-  int debris_pieces = 0;           // pieces dropped as debris
-  double debris_volume_m3 = 0.0;   // their total volume
+  int components = 0;             // of the carved mesh, debris included
+  int debris_pieces = 0;          // pieces dropped as debris
+  double debris_volume_m3 = 0.0;  // their total volume
   bool closed = false;
   std::int64_t self_intersecting_pairs_after_rounding = 0;
   std::vector<int> unseparated;  // joints whose two probe points ended in one part
@@ -48,14 +48,11 @@ struct CarveSummary {
 // `vertex_link` labels F's vertices; `bone_names` and `bone_depth` name and order the links.
 // Pieces that hold no joint and enclose less than `debris_volume_m3` are dropped (counted in the
 // summary): crumbs a hull pinched off F's surface.
-Result<std::vector<CarvedPart>> carve_parts(const TriangleMesh& fabrication,
-                                            const std::vector<int>& vertex_link,
-                                            const std::vector<std::string>& bone_names,
-                                            const std::vector<int>& bone_depth,
-                                            const std::vector<Joint>& joints,
-                                            const std::vector<JointHull>& hulls,
-                                            double debris_volume_m3, ProgressReporter* progress,
-                                            CarveSummary* summary);
+Result<std::vector<CarvedPart>> carve_parts(
+    const TriangleMesh& fabrication, const std::vector<int>& vertex_link,
+    const std::vector<std::string>& bone_names, const std::vector<int>& bone_depth,
+    const std::vector<Joint>& joints, const std::vector<JointHull>& hulls, double debris_volume_m3,
+    ProgressReporter* progress, CarveSummary* summary);
 
 // A point of the joint's moving (child) side and of its fixed (parent) side, inside the material
 // of each after carving: the ball's centre and the socket's shell below it; the knuckle's ring and
