@@ -90,9 +90,7 @@ Result<JointHull> ball_hull(const Joint& j, const HullOptions& o, const Depth& d
   // Reach of a direction given in the joint frame.
   const auto reach = [&](double extra) {
     return [&, extra](const Eigen::Vector3d& local_dir) {
-      const double t = exit_distance(depth, j.centre, frame.axes * local_dir);
-      out.reach_m = std::max(out.reach_m, t + extra);
-      return std::max(t, s.r) + extra;
+      return std::max(exit_distance(depth, j.centre, frame.axes * local_dir), s.r) + extra;
     };
   };
   const auto psi = [&](double theta) { return s.alpha + j.cone.at(theta) + s.delta; };
@@ -155,15 +153,29 @@ Result<JointHull> hinge_hull(const Joint& j, const HullOptions& o, const Depth& 
       half = std::max({half, exit_distance(depth, q, j.a), exit_distance(depth, q, -j.a)});
     }
   half += m;
-  // Outer radius of a wedge at (x, phi): past the mesh along the ray from the axis.
-  const auto reach = [&](double extra) {
-    return [&, extra](double x, double phi) {
-      const Eigen::Vector3d q = j.centre + x * j.a;
-      const Eigen::Vector3d dir = std::cos(phi) * j.n + std::sin(phi) * j.f();
-      const double t = exit_distance(depth, q, dir);
-      out.reach_m = std::max(out.reach_m, std::hypot(x, t + extra));
-      return std::max(t, h.R) + extra;
-    };
+  // Where the ray from the axis at x in direction phi leaves the mesh.
+  const auto exit_at = [&](double x, double phi) {
+    return exit_distance(depth, j.centre + x * j.a, std::cos(phi) * j.n + std::sin(phi) * j.f());
+  };
+  // The fork wedge's outer radius: past the mesh at the swing's angles. Well inside the neck's
+  // angle, which the child's body (subtracted below) covers, it goes no farther than at the
+  // neck's sides: followed to the exit there it would run down the child's whole limb, and the
+  // two prisms' facets would leave a sliver of it along the limb. The samples next to the neck's
+  // sides keep their full reach, so the facets between them still cut through at the sides.
+  const double wedge_step = sector_step(-psi_b, psi_f, o.segments);
+  const auto wedge_reach = [&](double x, double phi) {
+    double t = exit_at(x, phi);
+    if (std::abs(phi) + wedge_step < h.alpha)
+      t = std::min(t, std::max(exit_at(x, -h.alpha), exit_at(x, h.alpha)));
+    // Past the transition plane (a swing beyond 90 degrees) the wedge frees only the
+    // mechanism's disc of radius r_max, as Fig. 6.4.9's area a3 assumes: the parent's body
+    // behind it stays whole (followed to the exit, the wedge's side would split the parent's limb
+    // lengthwise). Where the folded child then meets that body, the sweeps narrow the range.
+    if (std::abs(phi) > kPi / 2) t = std::min(t, j.r_max);
+    return std::max(t, h.R) + m;
+  };
+  const auto body_reach = [&](double x, double phi) {
+    return std::max(exit_at(x, phi), h.R) + 2 * m;
   };
   const int stations = 8;
   const int small = std::max(12, o.segments / 3);
@@ -173,7 +185,7 @@ Result<JointHull> hinge_hull(const Joint& j, const HullOptions& o, const Depth& 
   // coincide, and outside the pin.
   const double wedge_inner = h.R - d - 0.5 * std::min(d, h.R - d - h.r);
   steps.push_back(step(BooleanOperation::kUnion,
-                       sector_prism_mesh(wedge_inner, reach(m), -psi_b, psi_f, -half, half,
+                       sector_prism_mesh(wedge_inner, wedge_reach, -psi_b, psi_f, -half, half,
                                          stations, o.segments, Facet::kInscribed),
                        "fork wedge"));
   // Friction bumps on the knuckle's faces, behind the pin (away from the neck).
@@ -203,7 +215,7 @@ Result<JointHull> hinge_hull(const Joint& j, const HullOptions& o, const Depth& 
                                          o.segments, Facet::kInscribed),
                        "neck"));
   steps.push_back(step(BooleanOperation::kDifference,
-                       sector_prism_mesh(h.R + d / 2, reach(2 * m), -h.alpha, h.alpha, -half - m,
+                       sector_prism_mesh(h.R + d / 2, body_reach, -h.alpha, h.alpha, -half - m,
                                          half + m, stations, o.segments, Facet::kCircumscribed),
                        "child body"));
   const double hole_end = h.b / 2 - d / 2;
@@ -249,8 +261,13 @@ Result<JointHull> build_joint_hull(const Joint& joint, const HullOptions& option
   if (!joint.feasible())
     return failed_precondition(fmt::format("joint {} -> {}: no feasible design to build",
                                            joint.parent_name, joint.child_name));
-  return joint.type == JointType::kBall ? ball_hull(joint, options, depth)
-                                        : hinge_hull(joint, options, depth);
+  HC_ASSIGN_OR_RETURN(JointHull out, joint.type == JointType::kBall
+                                         ? ball_hull(joint, options, depth)
+                                         : hinge_hull(joint, options, depth));
+  for (Eigen::Index v = 0; v < out.hull.num_vertices(); ++v)
+    out.reach_m =
+        std::max(out.reach_m, (out.hull.vertices.row(v).transpose() - joint.centre).norm());
+  return out;
 }
 
 }  // namespace hc::articulation

@@ -158,12 +158,17 @@ TriangleMesh cylinder_mesh(double radius, double x0, double x1, int segments, Fa
   return b.mesh();
 }
 
+double sector_step(double phi0, double phi1, int segments_per_turn) {
+  const int n =
+      std::max(1, static_cast<int>(std::ceil((phi1 - phi0) / (2 * kPi) * segments_per_turn)));
+  return (phi1 - phi0) / n;
+}
+
 TriangleMesh sector_prism_mesh(double r0, const std::function<double(double, double)>& r1,
                                double phi0, double phi1, double x0, double x1, int stations,
                                int segments_per_turn, Facet inner_facet) {
-  const int n = std::max(
-      1, static_cast<int>(std::ceil((phi1 - phi0) / (2 * kPi) * segments_per_turn)));
-  const double step = (phi1 - phi0) / n;
+  const double step = sector_step(phi0, phi1, segments_per_turn);
+  const int n = static_cast<int>(std::lround((phi1 - phi0) / step));
   const double inner = inner_facet == Facet::kInscribed ? r0 : r0 / std::cos(step / 2);
   const auto at = [](double x, double r, double phi) {
     return Eigen::Vector3d(x, r * std::cos(phi), r * std::sin(phi));

@@ -55,6 +55,8 @@ TriangleMesh cylinder_mesh(double radius, double x0, double x1, int segments, Fa
 // wedge whose edge is the x axis) and angles [phi0, phi1] measured in the (y, z) plane from +y
 // towards +z (0 < phi1 - phi0 < 2 pi), with `stations` + 1 cross-sections along x. The inner arc
 // is faceted inside (kInscribed) or outside (kCircumscribed) the circle of r0; r1 > r0.
+// The angle between the cross-sections' samples of such a prism over [phi0, phi1].
+double sector_step(double phi0, double phi1, int segments_per_turn);
 TriangleMesh sector_prism_mesh(double r0, const std::function<double(double, double)>& r1,
                                double phi0, double phi1, double x0, double x1, int stations,
                                int segments_per_turn, Facet inner_facet);
