@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <map>
 #include <numbers>
 
 #include "fabrication/articulation/carving.h"
@@ -144,18 +145,34 @@ Result<JointHull> hinge_hull(const Joint& j, const HullOptions& o, const Depth& 
   JointHull out;
   const double psi_f = std::min(h.alpha + j.swing.forward + h.delta, 0.97 * kPi);
   const double psi_b = std::min(h.alpha + j.swing.backward + h.delta, 0.97 * kPi);
-  // Half-extent along the axis: where rays along +-a leave the mesh, from points of the wedge.
-  double half = h.b / 2 + d;
-  for (double phi : {-psi_b, -h.alpha, 0.0, h.alpha, psi_f})
-    for (double t : {0.0, 0.5, 1.0, 1.5, 2.0}) {
-      const Eigen::Vector3d q =
-          j.centre + t * j.r_max * (std::cos(phi) * j.n + std::sin(phi) * j.f());
-      half = std::max({half, exit_distance(depth, q, j.a), exit_distance(depth, q, -j.a)});
-    }
-  half += m;
   // Where the ray from the axis at x in direction phi leaves the mesh.
   const auto exit_at = [&](double x, double phi) {
     return exit_distance(depth, j.centre + x * j.a, std::cos(phi) * j.n + std::sin(phi) * j.f());
+  };
+  // Half-extent along the axis: where rays along +-a leave the mesh, from points of the wedge out
+  // to where its rays leave the mesh (a flat limb is wider far from the axis than near it).
+  double half = h.b / 2 + d;
+  for (double phi : {-psi_b, -h.alpha, 0.0, h.alpha, psi_f}) {
+    const Eigen::Vector3d dir = std::cos(phi) * j.n + std::sin(phi) * j.f();
+    const double out_to = std::max(2 * j.r_max, std::min(exit_at(0.0, phi), 4 * j.r_max));
+    for (double t : {0.0, 0.125, 0.25, 0.375, 0.5, 0.625, 0.75, 0.875, 1.0}) {
+      const Eigen::Vector3d q = j.centre + t * out_to * dir;
+      half = std::max({half, exit_distance(depth, q, j.a), exit_distance(depth, q, -j.a)});
+    }
+  }
+  half += m;
+  // Where rays in direction phi leave the mesh, farthest over the slot's whole width: the prisms
+  // below keep one radius along the axis, so the cut also leaves the mesh between their
+  // cross-sections where a flat-sided limb is as wide at its sides as in its middle (sampled at
+  // the cross-sections alone, the facets between the last one inside the limb and the first one
+  // outside stopped short of its surface there and left the two sides joined).
+  std::map<double, double> widest;
+  const auto exit_across = [&](double phi) {
+    auto [it, fresh] = widest.emplace(phi, 0.0);
+    if (fresh)
+      for (int k = 0; k <= 16; ++k)
+        it->second = std::max(it->second, exit_at(-half + half * k / 8, phi));
+    return it->second;
   };
   // The fork wedge's outer radius: past the mesh at the swing's angles. Well inside the neck's
   // angle, which the child's body (subtracted below) covers, it goes no farther than at the
@@ -163,10 +180,10 @@ Result<JointHull> hinge_hull(const Joint& j, const HullOptions& o, const Depth& 
   // two prisms' facets would leave a sliver of it along the limb. The samples next to the neck's
   // sides keep their full reach, so the facets between them still cut through at the sides.
   const double wedge_step = sector_step(-psi_b, psi_f, o.segments);
-  const auto wedge_reach = [&](double x, double phi) {
-    double t = exit_at(x, phi);
+  const auto wedge_reach = [&](double, double phi) {
+    double t = exit_across(phi);
     if (std::abs(phi) + wedge_step < h.alpha)
-      t = std::min(t, std::max(exit_at(x, -h.alpha), exit_at(x, h.alpha)));
+      t = std::min(t, std::max(exit_across(-h.alpha), exit_across(h.alpha)));
     // Past the transition plane (a swing beyond 90 degrees) the wedge frees only the
     // mechanism's disc of radius r_max, as Fig. 6.4.9's area a3 assumes: the parent's body
     // behind it stays whole (followed to the exit, the wedge's side would split the parent's limb
@@ -174,8 +191,8 @@ Result<JointHull> hinge_hull(const Joint& j, const HullOptions& o, const Depth& 
     if (std::abs(phi) > kPi / 2) t = std::min(t, j.r_max);
     return std::max(t, h.R) + m;
   };
-  const auto body_reach = [&](double x, double phi) {
-    return std::max(exit_at(x, phi), h.R) + 2 * m;
+  const auto body_reach = [&](double, double phi) {
+    return std::max(exit_across(phi), h.R) + 2 * m;
   };
   const int stations = 8;
   const int small = std::max(12, o.segments / 3);
