@@ -168,14 +168,44 @@ Result<std::vector<CarvedPart>> carve_parts(
                       geometry::csg_sequence(fabrication, steps, options, &csg));
   summary->closed = csg.closed;
   summary->self_intersecting_pairs_after_rounding = csg.self_intersecting_pairs_after_rounding;
-  std::vector<TriangleMesh> pieces = split_components(carved);
-  summary->components = static_cast<int>(pieces.size());
+  std::vector<TriangleMesh> shells = split_components(carved);
+  summary->components = static_cast<int>(shells.size());
 
-  // The pieces that hold a joint's probe point; the others are F's unjointed parts, or debris.
+  // Solid pieces, each with the cavities inside it (inward shells: a wrapped soup's inner
+  // surfaces), and the pieces that hold a joint's probe point; the others are F's unjointed
+  // parts, or debris.
+  std::vector<TriangleMesh> pieces, cavities;
+  std::vector<double> volumes;
+  for (TriangleMesh& shell : shells) {
+    const double volume = enclosed_volume(shell);
+    if (volume < 0) {
+      cavities.push_back(std::move(shell));
+    } else {
+      pieces.push_back(std::move(shell));
+      volumes.push_back(volume);
+    }
+  }
   std::vector<std::unique_ptr<geometry::MeshProximity>> inside;
   for (const TriangleMesh& piece : pieces) {
     HC_ASSIGN_OR_RETURN(geometry::MeshProximity tree, geometry::MeshProximity::build(piece));
     inside.push_back(std::make_unique<geometry::MeshProximity>(std::move(tree)));
+  }
+  std::vector<std::vector<TriangleMesh>> held(pieces.size());
+  for (TriangleMesh& cavity : cavities) {
+    const Eigen::Vector3d at = cavity.vertices.row(0).transpose();
+    std::size_t host = 0;
+    while (host < pieces.size() && !inside[host]->contains(at)) ++host;
+    if (host == pieces.size()) continue;  // an inward shell in no solid bounds nothing
+    volumes[host] += enclosed_volume(cavity);
+    held[host].push_back(std::move(cavity));
+    ++summary->cavities;
+  }
+  for (std::size_t k = 0; k < pieces.size(); ++k) {
+    if (held[k].empty()) continue;
+    held[k].insert(held[k].begin(), std::move(pieces[k]));
+    pieces[k] = concatenated(held[k]);
+    HC_ASSIGN_OR_RETURN(geometry::MeshProximity tree, geometry::MeshProximity::build(pieces[k]));
+    inside[k] = std::make_unique<geometry::MeshProximity>(std::move(tree));
   }
   const auto piece_of = [&](const Eigen::Vector3d& p) {
     for (std::size_t k = 0; k < inside.size(); ++k)
@@ -199,7 +229,7 @@ Result<std::vector<CarvedPart>> carve_parts(
     TriangleMesh& piece = pieces[k];
     // Debris: a sliver that a hull's faceted surface pinched off where it grazes F's surface.
     // It holds no joint and would print as a loose crumb among the parts.
-    const double volume = enclosed_volume(piece);
+    const double volume = volumes[k];
     if (!probed[k] && volume < debris_volume_m3) {
       ++summary->debris_pieces;
       summary->debris_volume_m3 += volume;

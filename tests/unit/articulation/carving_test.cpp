@@ -1,7 +1,8 @@
-// Carving's bookkeeping of the pieces a cut leaves: each piece holding a joint's probe is a part;
-// a piece without a joint is kept but blamed on the hull that bounds it (severed), unless it is a
-// crumb below the debris volume, which is dropped and counted. Hand-built: a 40 x 10 x 10 mm bar,
-// and a "hull" of three slabs across it whose pieces have volumes known by construction.
+// Carving's bookkeeping of the pieces a cut leaves: each piece holding a joint's probe is a part,
+// with the cavities inside it; a piece without a joint is kept but blamed on the hull that bounds
+// it (severed), unless it is a crumb below the debris volume, which is dropped and counted.
+// Hand-built: a 40 x 10 x 10 mm bar holding a cavity, and a "hull" of three slabs across it whose
+// pieces have volumes known by construction.
 #include "fabrication/articulation/carving.h"
 
 #include <gtest/gtest.h>
@@ -18,7 +19,11 @@ constexpr double kMm = 1e-3;
 
 TEST(Carving, PiecesWithoutAJointAreSeveredOrDroppedAsCrumbs) {
   using testing::box;
-  const TriangleMesh bar = box(Eigen::Vector3d(-20, -5, -5) * kMm, Eigen::Vector3d(20, 5, 5) * kMm);
+  // The bar holds a 2 x 2 x 2 mm cavity in its parent half (an inward shell, 8 mm^3).
+  TriangleMesh cavity = box(Eigen::Vector3d(-10, -1, -1) * kMm, Eigen::Vector3d(-8, 1, 1) * kMm);
+  cavity.triangles.col(1).swap(cavity.triangles.col(2));
+  const TriangleMesh bar = concatenated(
+      {box(Eigen::Vector3d(-20, -5, -5) * kMm, Eigen::Vector3d(20, 5, 5) * kMm), cavity});
   // Links: x < 0 the parent (0), x >= 0 the child (1).
   std::vector<int> link;
   for (Eigen::Index v = 0; v < bar.num_vertices(); ++v)
@@ -42,7 +47,8 @@ TEST(Carving, PiecesWithoutAJointAreSeveredOrDroppedAsCrumbs) {
   Result<std::vector<CarvedPart>> parts =
       carve_parts(bar, link, {"parent", "child"}, {0, 1}, {j}, {hull}, 30e-9, nullptr, &s);
   ASSERT_TRUE(parts.ok()) << parts.status().to_string();
-  EXPECT_EQ(s.components, 4);
+  EXPECT_EQ(s.components, 5);
+  EXPECT_EQ(s.cavities, 1);  // kept in the parent part, not a part of its own
   EXPECT_TRUE(s.unseparated.empty());
   // The crumb: dropped and counted with its volume (0.2 x 10 x 10 mm).
   EXPECT_EQ(s.debris_pieces, 1);
@@ -55,7 +61,7 @@ TEST(Carving, PiecesWithoutAJointAreSeveredOrDroppedAsCrumbs) {
   std::sort(volumes.begin(), volumes.end());
   EXPECT_NEAR(volumes[0], 450e-9, 1e-12);   // x in [15.5, 20]
   EXPECT_NEAR(volumes[1], 1475e-9, 1e-12);  // child: x in [0.25, 15]
-  EXPECT_NEAR(volumes[2], 1945e-9, 1e-12);  // parent: x in [-19.7, -0.25]
+  EXPECT_NEAR(volumes[2], 1937e-9, 1e-12);  // parent: x in [-19.7, -0.25], less the cavity
 
   // Without the severing slab, nothing is blamed.
   hull.hull = concatenated({slab(-0.25, 0.25), slab(-19.8, -19.7)});

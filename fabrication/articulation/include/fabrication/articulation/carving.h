@@ -35,6 +35,7 @@ struct CarvedPart {
 
 struct CarveSummary {
   int components = 0;             // of the carved mesh, debris included
+  int cavities = 0;               // inward shells kept inside the part that holds them
   int debris_pieces = 0;          // pieces dropped as debris
   double debris_volume_m3 = 0.0;  // their total volume
   bool closed = false;
