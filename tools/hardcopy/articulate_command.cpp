@@ -112,6 +112,7 @@ Json result_json(const ArticulateArgs& args, const ArticulateResult& r) {
               {"joints", joints},
               {"accepted", r.accepted()},
               {"parts", r.parts.size()},
+              {"cavities", r.carving.cavities},
               {"debris",
                {{"pieces", r.carving.debris_pieces},
                 {"volume_mm3", r.carving.debris_volume_m3 / (kMm * kMm * kMm)}}},
