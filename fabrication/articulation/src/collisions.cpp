@@ -3,6 +3,7 @@
 #include <fmt/format.h>
 
 #include <algorithm>
+#include <map>
 #include <memory>
 #include <set>
 #include <utility>
@@ -14,6 +15,8 @@ namespace hc::articulation {
 namespace {
 
 using Edge = std::pair<int, int>;
+// Shrink steps computed per group at most: 0.9^200 of r_max is far below any feasible joint.
+constexpr std::size_t kMaxSteps = 200;
 
 struct Group {
   std::vector<int> members;
@@ -44,18 +47,31 @@ class Resolver {
   const HullFn& build_;
   const CollisionOptions& o_;
   CollisionSummary& s_;
-  std::vector<std::unique_ptr<geometry::MeshDistance>> distance_;
-  std::vector<std::unique_ptr<geometry::MeshProximity>> proximity_;
+  struct Built {
+    JointHull hull;
+    std::shared_ptr<geometry::MeshDistance> distance;
+    std::shared_ptr<geometry::MeshProximity> proximity;
+  };
+  std::map<std::pair<int, double>, Built> built_;  // by joint and r_max
+  std::vector<std::shared_ptr<geometry::MeshDistance>> distance_;
+  std::vector<std::shared_ptr<geometry::MeshProximity>> proximity_;
   std::vector<double> initial_area_, initial_r_;
 };
 
 Status Resolver::refresh(int i) {
-  HC_ASSIGN_OR_RETURN(hulls_[static_cast<std::size_t>(i)], build_(J(i)));
-  const TriangleMesh& h = hulls_[static_cast<std::size_t>(i)].hull;
-  HC_ASSIGN_OR_RETURN(geometry::MeshDistance d, geometry::MeshDistance::build(h));
-  HC_ASSIGN_OR_RETURN(geometry::MeshProximity p, geometry::MeshProximity::build(h));
-  distance_[static_cast<std::size_t>(i)] = std::make_unique<geometry::MeshDistance>(std::move(d));
-  proximity_[static_cast<std::size_t>(i)] = std::make_unique<geometry::MeshProximity>(std::move(p));
+  // A joint's design, and so its hull, depends only on its r_max: hulls met before are reused.
+  auto [it, fresh] = built_.try_emplace({i, J(i).r_max});
+  Built& b = it->second;
+  if (fresh) {
+    HC_ASSIGN_OR_RETURN(b.hull, build_(J(i)));
+    HC_ASSIGN_OR_RETURN(geometry::MeshDistance d, geometry::MeshDistance::build(b.hull.hull));
+    HC_ASSIGN_OR_RETURN(geometry::MeshProximity p, geometry::MeshProximity::build(b.hull.hull));
+    b.distance = std::make_shared<geometry::MeshDistance>(std::move(d));
+    b.proximity = std::make_shared<geometry::MeshProximity>(std::move(p));
+  }
+  hulls_[static_cast<std::size_t>(i)] = b.hull;
+  distance_[static_cast<std::size_t>(i)] = b.distance;
+  proximity_[static_cast<std::size_t>(i)] = b.proximity;
   return {};
 }
 
@@ -129,50 +145,95 @@ Status Resolver::run() {
     std::vector<Edge> edges = edges_among(g.members);
     if (edges.empty()) continue;
     const std::set<int> inside(g.members.begin(), g.members.end());
-    while (true) {
-      const int strong = *std::max_element(g.members.begin(), g.members.end(),
-                                           [&](int x, int y) { return J(x).min_area < J(y).min_area; });
-      J(strong).r_max *= o_.shrink;
-      redesign_(&J(strong));
-      ++s_.shrink_steps;
-      task.advance();
-      bool fail = !J(strong).feasible() || J(strong).min_area < o_.min_area_m2;
-      if (!fail) {
-        HC_RETURN_IF_ERROR(refresh(strong));
-        for (std::size_t k = 0; k < joints_.size() && !fail; ++k) {
-          const int other = static_cast<int>(k);
-          if (J(other).excluded || inside.count(other) || other == strong) continue;
-          fail = collide(strong, other);
-        }
-      }
-      if (fail) {
-        const int weak = *std::min_element(g.members.begin(), g.members.end(), [&](int x, int y) {
-          return initial_area_[static_cast<std::size_t>(x)] < initial_area_[static_cast<std::size_t>(y)];
-        });
-        exclude(weak, "its collisions with neighbouring joints could not be resolved (weakest "
-                      "joint of its collision group)");
-        // Drop every group descended from the same initial group; restart it without `weak`.
-        std::erase_if(stack, [&](const Group& x) { return x.origin == g.origin; });
-        std::vector<int> reset;
-        for (int m : origins[static_cast<std::size_t>(g.origin)])
-          if (!J(m).excluded) reset.push_back(m);
-        origins[static_cast<std::size_t>(g.origin)] = reset;
-        for (int m : reset) {
-          J(m).r_max = initial_r_[static_cast<std::size_t>(m)];
-          redesign_(&J(m));
-          HC_RETURN_IF_ERROR(refresh(m));
-        }
-        for (auto& comp : components(reset, edges_among(reset))) stack.push_back({comp, g.origin});
-        break;
-      }
-      const std::vector<Edge> now = edges_among(g.members);
-      if (now.size() < edges.size()) {
-        s_.collisions_resolved += static_cast<int>(edges.size() - now.size());
-        for (auto& comp : components(g.members, now)) stack.push_back({comp, g.origin});
-        break;
-      }
-      edges = now;
+    // The shrink sequence: each step shrinks the group's strongest member (largest smallest
+    // critical area) by o_.shrink, until a collision is resolved or a step fails. It depends on
+    // the designs alone, so it is computed first, cheaply; hulls are built only at the steps a
+    // search probes for the first one that resolves a collision (hulls were 95 % of this stage
+    // when built at every step).
+    std::vector<std::vector<Joint>> states{{}};
+    for (int m : g.members) states[0].push_back(J(m));
+    std::size_t last = 0;  // last feasible step
+    bool infeasible = false;
+    while (!infeasible && states.size() < kMaxSteps) {
+      std::vector<Joint> next = states.back();
+      const auto strong =
+          std::max_element(next.begin(), next.end(),
+                           [](const Joint& x, const Joint& y) { return x.min_area < y.min_area; });
+      strong->r_max *= o_.shrink;
+      redesign_(&*strong);
+      infeasible = !strong->feasible() || strong->min_area < o_.min_area_m2;
+      if (!infeasible) states.push_back(std::move(next)), last = states.size() - 1;
     }
+    // Step k's outcome: 1 resolved, 0 still colliding, -1 a shrunk member hits a joint outside
+    // the group (which fails the group, as an infeasible step does).
+    const auto probe = [&](std::size_t k) -> Result<int> {
+      for (std::size_t x = 0; x < g.members.size(); ++x) {
+        const int m = g.members[x];
+        if (J(m).r_max == states[k][x].r_max) continue;
+        J(m) = states[k][x];
+        HC_RETURN_IF_ERROR(refresh(m));
+      }
+      for (std::size_t x = 0; x < g.members.size(); ++x) {
+        const int m = g.members[x];
+        if (states[k][x].r_max == states[0][x].r_max) continue;
+        for (std::size_t o = 0; o < joints_.size(); ++o) {
+          const int other = static_cast<int>(o);
+          if (!J(other).excluded && !inside.count(other) && collide(m, other)) return -1;
+        }
+      }
+      return edges_among(g.members).size() < edges.size() ? 1 : 0;
+    };
+    // The first resolving step: doubling, then bisection (more shrinking resolves more).
+    std::size_t lo = 0, hi = 0;  // lo: known not to resolve; hi: resolves (0: none found)
+    int outcome = 0;
+    for (std::size_t k = 1; last > 0; k = std::min(2 * k, last)) {
+      HC_ASSIGN_OR_RETURN(outcome, probe(k));
+      if (outcome != 0) {
+        hi = k;
+        break;
+      }
+      lo = k;
+      if (k == last) break;
+    }
+    while (outcome == 1 && hi - lo > 1) {
+      const std::size_t mid = (lo + hi) / 2;
+      HC_ASSIGN_OR_RETURN(const int at, probe(mid));
+      if (at == 0) {
+        lo = mid;
+      } else {
+        hi = mid, outcome = at;
+      }
+    }
+    if (outcome == 1) {
+      HC_ASSIGN_OR_RETURN(outcome, probe(hi));  // the joints as at step hi
+    }
+    s_.shrink_steps += static_cast<int>(outcome == 1 ? hi : last + 1);
+    task.advance(outcome == 1 ? hi : last + 1);
+    if (outcome != 1) {
+      const int weak = *std::min_element(g.members.begin(), g.members.end(), [&](int x, int y) {
+        return initial_area_[static_cast<std::size_t>(x)] <
+               initial_area_[static_cast<std::size_t>(y)];
+      });
+      exclude(weak,
+              "its collisions with neighbouring joints could not be resolved (weakest "
+              "joint of its collision group)");
+      // Drop every group descended from the same initial group; restart it without `weak`.
+      std::erase_if(stack, [&](const Group& x) { return x.origin == g.origin; });
+      std::vector<int> reset;
+      for (int m : origins[static_cast<std::size_t>(g.origin)])
+        if (!J(m).excluded) reset.push_back(m);
+      origins[static_cast<std::size_t>(g.origin)] = reset;
+      for (int m : reset) {
+        J(m).r_max = initial_r_[static_cast<std::size_t>(m)];
+        redesign_(&J(m));
+        HC_RETURN_IF_ERROR(refresh(m));
+      }
+      for (auto& comp : components(reset, edges_among(reset))) stack.push_back({comp, g.origin});
+      continue;
+    }
+    const std::vector<Edge> now = edges_among(g.members);
+    s_.collisions_resolved += static_cast<int>(edges.size() - now.size());
+    for (auto& comp : components(g.members, now)) stack.push_back({comp, g.origin});
   }
   return {};
 }
