@@ -44,8 +44,8 @@ TriangleMesh small_sphere(double radius, int segments, Facet facet, const Eigen:
 // The hull without the solid fragments its CSG can leave apart from the mechanism: where a cut's
 // reach changes fast between neighbouring directions (along a limb), the swing wedge and the
 // child's body sector, sampled at different azimuths, leave thin islands of the wedge behind.
-// Carved out of F they would slice slivers off the parts. Kept: the largest solid and the
-// cavities inside it (the pin's gap is one).
+// Carved out of F they would slice slivers off the parts. Kept: the largest solid and any
+// cavity inside it.
 Result<TriangleMesh> without_fragments(const TriangleMesh& hull) {
   std::vector<TriangleMesh> pieces = split_components(hull);
   if (pieces.size() == 1) return hull;
