@@ -2,6 +2,7 @@
 
 #include <fmt/format.h>
 
+#include <Eigen/Geometry>
 #include <algorithm>
 #include <chrono>
 #include <map>
@@ -155,11 +156,33 @@ Result<std::vector<CarvedPart>> carve_parts(
     const std::vector<Joint>& joints, const std::vector<JointHull>& hulls, double debris_volume_m3,
     ProgressReporter* progress, CarveSummary* summary) {
   const auto start = std::chrono::steady_clock::now();
+  // Hulls whose bounding boxes are apart are subtracted together, as one operand of several
+  // closed components: each corefinement pass walks all of F (584,320 triangles for a wrapped
+  // Testwuson), so fewer passes carve faster. Resolved joints' hulls are d apart anyway.
+  struct Batch {
+    std::vector<TriangleMesh> hulls;
+    std::vector<Eigen::AlignedBox3d> boxes;
+    std::string name;
+  };
+  std::vector<Batch> batches;
+  for (std::size_t i = 0; i < joints.size(); ++i) {
+    if (joints[i].excluded) continue;
+    const TriangleMesh& h = hulls[i].hull;
+    const Eigen::AlignedBox3d box(h.vertices.colwise().minCoeff().transpose(),
+                                  h.vertices.colwise().maxCoeff().transpose());
+    auto fits = std::find_if(batches.begin(), batches.end(), [&](const Batch& b) {
+      return std::none_of(b.boxes.begin(), b.boxes.end(),
+                          [&](const Eigen::AlignedBox3d& o) { return o.intersects(box); });
+    });
+    if (fits == batches.end()) fits = batches.insert(batches.end(), Batch{});
+    fits->hulls.push_back(h);
+    fits->boxes.push_back(box);
+    fits->name += fmt::format("{}hull {} -> {}", fits->name.empty() ? "" : ", ",
+                              joints[i].parent_name, joints[i].child_name);
+  }
   std::vector<geometry::CsgStep> steps;
-  for (std::size_t i = 0; i < joints.size(); ++i)
-    if (!joints[i].excluded)
-      steps.push_back({geometry::BooleanOperation::kDifference, hulls[i].hull,
-                       fmt::format("hull {} -> {}", joints[i].parent_name, joints[i].child_name)});
+  for (Batch& b : batches)
+    steps.push_back({geometry::BooleanOperation::kDifference, concatenated(b.hulls), b.name});
   geometry::CsgOptions options;
   options.check_operands = false;  // F is checked when built; hulls are exact CSG results
   options.progress = progress;
