@@ -7,7 +7,10 @@
 // a joint outside its group: then the group's weakest member at initialisation is excluded, every
 // group descended from the same initial group is dropped, and that initial group is pushed back
 // without it and with its radii reset. Radii only shrink and every failure excludes a joint, so
-// the loop ends.
+// the loop ends. The shrink steps depend on the designs alone, so they are computed first and
+// hulls are built only at the steps a doubling-then-bisection search probes for the first one
+// that resolves a collision (outside collisions are checked at those steps); hulls are reused by
+// r_max.
 #pragma once
 
 #include <functional>
