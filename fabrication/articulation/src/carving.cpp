@@ -101,6 +101,40 @@ std::vector<TriangleMesh> split_components(const TriangleMesh& m) {
   return out;
 }
 
+Result<std::vector<Solid>> solids_of(const TriangleMesh& mesh, int* cavities) {
+  std::vector<Solid> solids;
+  std::vector<TriangleMesh> inward;
+  for (TriangleMesh& shell : split_components(mesh)) {
+    const double volume = enclosed_volume(shell);
+    if (volume < 0) {
+      inward.push_back(std::move(shell));
+    } else {
+      solids.push_back({std::move(shell), volume});
+    }
+  }
+  if (inward.empty()) return solids;
+  std::vector<std::unique_ptr<geometry::MeshProximity>> inside;
+  for (const Solid& s : solids) {
+    HC_ASSIGN_OR_RETURN(geometry::MeshProximity tree, geometry::MeshProximity::build(s.mesh));
+    inside.push_back(std::make_unique<geometry::MeshProximity>(std::move(tree)));
+  }
+  std::vector<std::vector<TriangleMesh>> held(solids.size());
+  for (TriangleMesh& cavity : inward) {
+    const Eigen::Vector3d at = cavity.vertices.row(0).transpose();
+    std::size_t host = 0;
+    while (host < solids.size() && !inside[host]->contains(at)) ++host;
+    if (host == solids.size()) continue;
+    solids[host].volume_m3 += enclosed_volume(cavity);
+    held[host].push_back(std::move(cavity));
+    if (cavities != nullptr) ++*cavities;
+  }
+  for (std::size_t k = 0; k < solids.size(); ++k) {
+    if (held[k].empty()) continue;
+    held[k].insert(held[k].begin(), std::move(solids[k].mesh));
+    solids[k].mesh = concatenated(held[k]);
+  }
+  return solids;
+}
 
 void exclude_unseparable_joints(const std::vector<LinkContact>& contacts, int links,
                                 std::vector<Joint>* joints) {
@@ -191,44 +225,14 @@ Result<std::vector<CarvedPart>> carve_parts(
                       geometry::csg_sequence(fabrication, steps, options, &csg));
   summary->closed = csg.closed;
   summary->self_intersecting_pairs_after_rounding = csg.self_intersecting_pairs_after_rounding;
-  std::vector<TriangleMesh> shells = split_components(carved);
-  summary->components = static_cast<int>(shells.size());
-
-  // Solid pieces, each with the cavities inside it (inward shells: a wrapped soup's inner
-  // surfaces), and the pieces that hold a joint's probe point; the others are F's unjointed
-  // parts, or debris.
-  std::vector<TriangleMesh> pieces, cavities;
-  std::vector<double> volumes;
-  for (TriangleMesh& shell : shells) {
-    const double volume = enclosed_volume(shell);
-    if (volume < 0) {
-      cavities.push_back(std::move(shell));
-    } else {
-      pieces.push_back(std::move(shell));
-      volumes.push_back(volume);
-    }
-  }
+  // The solid pieces (each with its cavities: a wrapped soup's inner surfaces), and which of
+  // them hold a joint's probe point; the others are F's unjointed parts, or debris.
+  HC_ASSIGN_OR_RETURN(std::vector<Solid> pieces, solids_of(carved, &summary->cavities));
+  summary->components = static_cast<int>(pieces.size()) + summary->cavities;
   std::vector<std::unique_ptr<geometry::MeshProximity>> inside;
-  for (const TriangleMesh& piece : pieces) {
-    HC_ASSIGN_OR_RETURN(geometry::MeshProximity tree, geometry::MeshProximity::build(piece));
+  for (const Solid& piece : pieces) {
+    HC_ASSIGN_OR_RETURN(geometry::MeshProximity tree, geometry::MeshProximity::build(piece.mesh));
     inside.push_back(std::make_unique<geometry::MeshProximity>(std::move(tree)));
-  }
-  std::vector<std::vector<TriangleMesh>> held(pieces.size());
-  for (TriangleMesh& cavity : cavities) {
-    const Eigen::Vector3d at = cavity.vertices.row(0).transpose();
-    std::size_t host = 0;
-    while (host < pieces.size() && !inside[host]->contains(at)) ++host;
-    if (host == pieces.size()) continue;  // an inward shell in no solid bounds nothing
-    volumes[host] += enclosed_volume(cavity);
-    held[host].push_back(std::move(cavity));
-    ++summary->cavities;
-  }
-  for (std::size_t k = 0; k < pieces.size(); ++k) {
-    if (held[k].empty()) continue;
-    held[k].insert(held[k].begin(), std::move(pieces[k]));
-    pieces[k] = concatenated(held[k]);
-    HC_ASSIGN_OR_RETURN(geometry::MeshProximity tree, geometry::MeshProximity::build(pieces[k]));
-    inside[k] = std::make_unique<geometry::MeshProximity>(std::move(tree));
   }
   const auto piece_of = [&](const Eigen::Vector3d& p) {
     for (std::size_t k = 0; k < inside.size(); ++k)
@@ -249,10 +253,10 @@ Result<std::vector<CarvedPart>> carve_parts(
   HC_ASSIGN_OR_RETURN(const geometry::MeshDistance f_tree, geometry::MeshDistance::build(fabrication));
   std::vector<CarvedPart> parts;
   for (std::size_t k = 0; k < pieces.size(); ++k) {
-    TriangleMesh& piece = pieces[k];
+    TriangleMesh& piece = pieces[k].mesh;
     // Debris: a sliver that a hull's faceted surface pinched off where it grazes F's surface.
     // It holds no joint and would print as a loose crumb among the parts.
-    const double volume = volumes[k];
+    const double volume = pieces[k].volume_m3;
     if (!probed[k] && volume < debris_volume_m3) {
       ++summary->debris_pieces;
       summary->debris_volume_m3 += volume;

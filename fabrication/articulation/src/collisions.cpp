@@ -207,8 +207,9 @@ Status Resolver::run() {
     if (outcome == 1) {
       HC_ASSIGN_OR_RETURN(outcome, probe(hi));  // the joints as at step hi
     }
-    s_.shrink_steps += static_cast<int>(outcome == 1 ? hi : last + 1);
-    task.advance(outcome == 1 ? hi : last + 1);
+    const std::size_t steps = outcome == 1 ? hi : last + 1;  // taken, or up to the failing one
+    s_.shrink_steps += static_cast<int>(steps);
+    task.advance(steps);
     if (outcome != 1) {
       const int weak = *std::min_element(g.members.begin(), g.members.end(), [&](int x, int y) {
         return initial_area_[static_cast<std::size_t>(x)] <

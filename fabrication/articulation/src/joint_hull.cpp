@@ -10,7 +10,6 @@
 #include "fabrication/articulation/carving.h"
 #include "fabrication/articulation/primitives.h"
 #include "geometry/csg_sequence.h"
-#include "geometry/mesh_distance.h"
 
 namespace hc::articulation {
 namespace {
@@ -47,21 +46,12 @@ TriangleMesh small_sphere(double radius, int segments, Facet facet, const Eigen:
 // Carved out of F they would slice slivers off the parts. Kept: the largest solid and any
 // cavity inside it.
 Result<TriangleMesh> without_fragments(const TriangleMesh& hull) {
-  std::vector<TriangleMesh> pieces = split_components(hull);
-  if (pieces.size() == 1) return hull;
-  std::vector<double> volume;
-  std::size_t main = 0;
-  for (std::size_t k = 0; k < pieces.size(); ++k) {
-    volume.push_back(enclosed_volume(pieces[k]));
-    if (volume[k] > volume[main]) main = k;
-  }
-  HC_ASSIGN_OR_RETURN(const geometry::MeshDistance solid,
-                      geometry::MeshDistance::build(pieces[main]));
-  std::vector<TriangleMesh> kept{pieces[main]};
-  for (std::size_t k = 0; k < pieces.size(); ++k)
-    if (k != main && volume[k] < 0 && solid.inside(pieces[k].vertices.row(0).transpose()))
-      kept.push_back(std::move(pieces[k]));
-  return concatenated(kept);
+  HC_ASSIGN_OR_RETURN(std::vector<Solid> solids, solids_of(hull));
+  if (solids.size() <= 1) return solids.empty() ? hull : std::move(solids.front().mesh);
+  return std::move(
+      std::max_element(solids.begin(), solids.end(), [](const Solid& a, const Solid& b) {
+        return a.volume_m3 < b.volume_m3;
+      })->mesh);
 }
 
 // Evaluates the hull's CSG in the joint's frame and moves it to the world.

@@ -116,6 +116,7 @@ TEST(ArticulateCli, AnimatedFbxAndDirectXCharactersGivePartsThatPassEveryCheck) 
   //   leg: 8 parts for 2 joints, 0.104 mm apart.
   // * animation_with_skeleton.fbx: a flat-sided 40 mm thick chain of 14 bones. Before the hinge's
   //   cut kept its widest reach across the limb, no hinge separated its two sides: 0 joints.
+  // At this stop BCN gives 2 joints and the FBX 7; the bounds leave room for a design change.
   expect_posable_from_clips("X/BCN_Epileptic.X", 2);
   expect_posable_from_clips("FBX/animation_with_skeleton.fbx", 5);
 }

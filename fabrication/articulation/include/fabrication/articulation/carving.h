@@ -64,4 +64,16 @@ Eigen::Vector3d parent_probe(const Joint& joint);
 // Connected components of a mesh through shared vertices, each as its own mesh.
 std::vector<TriangleMesh> split_components(const TriangleMesh& mesh);
 
+// A closed solid: one outward shell with the inward shells (cavities) inside it; its volume net
+// of them.
+struct Solid {
+  TriangleMesh mesh;
+  double volume_m3 = 0.0;
+};
+
+// The solids of a closed mesh's components (split_components), each cavity with the solid that
+// holds it; an inward shell inside no solid bounds nothing and is dropped. `cavities` (optional)
+// counts the cavities kept.
+Result<std::vector<Solid>> solids_of(const TriangleMesh& mesh, int* cavities = nullptr);
+
 }  // namespace hc::articulation
