@@ -2,6 +2,8 @@
 
 #include <fmt/format.h>
 
+#include <Eigen/Cholesky>
+
 #include <algorithm>
 #include <cmath>
 #include <limits>
@@ -21,13 +23,58 @@ constexpr int kFreezeAfter = 20;
 // iteration's own tolerance is on position changes, orders of magnitude coarser).
 constexpr int kReuseIterations = 20;
 constexpr double kReuseTolerance = 1e-6;
+// With the penalty update the preconditioner differs from K only by the rotations, and the solves
+// may stop earlier: the next equilibrium iteration moves the positions by more than is left (an
+// inexact Newton-like forcing term). Default Hertz scene: 1e-6 3.45 s, 1e-3 2.63 s, 1e-2 2.69 s,
+// the same force to 1e-5; 0.1 2.19 s moved it by 2e-4 and failed the contact tests.
+constexpr double kUpdateTolerance = 1e-2;
+// The equilibrium iteration's remaining change is estimated from its contraction rate, times this
+// margin, while that is below kMaxRate (Hertz scene: rates 0.007-0.026).
+constexpr double kRateMargin = 2;
+constexpr double kMaxRate = 0.5;
 // A preconditioned solve that needed more than this many iterations shows the factorisation has
-// gone stale (after a fresh one they take about 3): the next iteration factorises directly.
-// Default Hertz scene (bench_fem_step): never 6.26 s, above 12 5.71 s, above 8 5.57 s, above 5
-// 5.46 s, above 3 5.71 s; the same force each time.
+// gone stale (after a fresh one they take 1-3): the next iteration factorises again. Chosen when
+// every contact change made it stale (default Hertz scene, bench_fem_step: never 6.26 s, above 12
+// 5.71 s, above 8 5.57 s, above 5 5.46 s, above 3 5.71 s); with the penalties as an update
+// (PenaltyUpdate) that scene now factorises once.
 constexpr int kRefactorAbove = 5;
 // The predictor extrapolates at most this many times the last depth step.
 constexpr double kMaxExtrapolation = 2.0;
+// The penalties reach the factorisation as a low-rank update while its columns hold at most this
+// many numbers (2^25: 256 MB) and ContactOptions::max_update_points allows.
+constexpr Eigen::Index kMaxUpdateEntries = Eigen::Index{1} << 25;
+
+// Contact penalties as a low-rank update of a factorisation of the elastic K alone (Woodbury's
+// identity): point i adds k_i u_i u_iᵀ, u_i = its weights ⊗ its normal on the free dofs, so for the
+// points A in contact, with W = K⁻¹ U_A and S = D⁻¹ + U_Aᵀ W (D = diag k_i),
+//   (K + U_A D U_Aᵀ)⁻¹ r = K⁻¹ r − W S⁻¹ Wᵀ r.
+// A point's column K⁻¹ u_i is one solve, kept until the next factorisation: points entering or
+// leaving contact then never make the factorisation stale, only the rotations do. A column keeps
+// the normal its point had when it was computed; the exact K (with today's normals) is what
+// conjugate gradients solve, so the small difference costs an iteration at most. Written here:
+// CHOLMOD's own update (cholmod_updown) works on simplicial factors only, and converting the
+// supernodal factor costs more than factorising again.
+struct PenaltyUpdate {
+  std::vector<int> column;               // per contact point: its column of w, or -1
+  std::vector<Eigen::Vector3d> normals;  // per column: the normal its u was built with
+  Eigen::MatrixXd w;                     // K⁻¹ u per column (free dofs × columns)
+  Eigen::MatrixXd wa;                    // w's columns of the points in contact, in their order
+  Eigen::LDLT<Eigen::MatrixXd> s;        // S for those points
+  bool factor_elastic = false;           // the factorisation is of the elastic K alone ...
+  int factor_call = -1;                  // ... and is the factorisation of this call
+
+  // Whether the model's factorisation is still the elastic one (others may factorise it).
+  bool elastic(const CorotationalFem& fem) const {
+    return factor_elastic && fem.cholesky().summary().factorize_calls == factor_call;
+  }
+
+  void clear(std::size_t points) {
+    column.assign(points, -1);
+    normals.clear();
+    w.resize(0, 0);
+    wa.resize(0, 0);
+  }
+};
 }  // namespace
 
 
@@ -50,6 +97,7 @@ Status ContactOptions::validate() const {
   if (!std::isfinite(max_travel_m) || max_travel_m < 0) {
     return invalid_argument("contact: max_travel_m must be >= 0");
   }
+  if (max_update_points < 0) return invalid_argument("contact: max_update_points must be >= 0");
   return sampling.validate();
 }
 
@@ -69,6 +117,7 @@ struct ContactSolver::Impl {
   MatrixX3d x_last, x_before;
   double depth_before = -1;
   int last_cg_iterations = 0;  // of the last preconditioned solve (0 after a factorisation)
+  double contraction = 0;      // largest rate of the equilibrium iteration seen with a held set
   const MaterialModel* material = nullptr;
   MatrixX3d contact_forces;
   // Last converged (depth, force) pairs for force-control initial guesses.
@@ -91,9 +140,96 @@ struct ContactSolver::Impl {
                                   p.weights(a) * p.weights(b) * knn);
   }
 
+  // Calls f(first dof, weight) for each free node of point i.
+  template <typename F>
+  void for_free_nodes(std::size_t i, F&& f) const {
+    const ContactPoint& p = surface.points()[i];
+    for (int k = 0; k < (p.is_node() ? 1 : 3); ++k) {
+      const int d0 = fem->dof(p.nodes[static_cast<std::size_t>(k)], 0);
+      if (d0 >= 0) f(d0, p.weights(k));
+    }
+  }
+
+  // Readies `update` for the points `in_contact` (columns for new ones, S).
+  Status prepare_update(const std::vector<std::size_t>& in_contact,
+                              const std::vector<Eigen::Vector3d>& normals);
+  Status precondition(const Eigen::VectorXd& r, Eigen::VectorXd* z) const;
+
   Status solve_depth(double depth, ContactSummary* s);
   Status solve_depth_once(double depth, ContactSummary* s);
+
+  PenaltyUpdate update;
 };
+
+Status ContactSolver::Impl::prepare_update(const std::vector<std::size_t>& in_contact,
+                                           const std::vector<Eigen::Vector3d>& normals) {
+  const Eigen::Index nfree = fem->num_free_dofs();
+  const auto m = static_cast<Eigen::Index>(in_contact.size());
+  std::vector<std::size_t> fresh;
+  for (std::size_t i : in_contact)
+    if (update.column[i] < 0) fresh.push_back(i);
+  const auto nf = static_cast<Eigen::Index>(fresh.size());
+  if ((update.w.cols() + nf) * nfree > kMaxUpdateEntries) {
+    // Keep only the columns of the points in contact now.
+    std::vector<std::size_t> kept_points;
+    for (std::size_t i : in_contact)
+      if (update.column[i] >= 0) kept_points.push_back(i);
+    Eigen::MatrixXd kept(nfree, static_cast<Eigen::Index>(kept_points.size()));
+    std::vector<Eigen::Vector3d> kept_normals;
+    for (std::size_t c = 0; c < kept_points.size(); ++c) {
+      const int col = update.column[kept_points[c]];
+      kept.col(static_cast<Eigen::Index>(c)) = update.w.col(col);
+      kept_normals.push_back(update.normals[static_cast<std::size_t>(col)]);
+    }
+    std::fill(update.column.begin(), update.column.end(), -1);
+    for (std::size_t c = 0; c < kept_points.size(); ++c)
+      update.column[kept_points[c]] = static_cast<int>(c);
+    update.w = std::move(kept);
+    update.normals = std::move(kept_normals);
+  }
+  if (nf > 0) {
+    Eigen::MatrixXd u = Eigen::MatrixXd::Zero(nfree, nf);
+    for (Eigen::Index j = 0; j < nf; ++j) {
+      const std::size_t i = fresh[static_cast<std::size_t>(j)];
+      for_free_nodes(i, [&](int d0, double c) { u.col(j).segment<3>(d0) += c * normals[i]; });
+    }
+    Eigen::MatrixXd x;
+    HC_RETURN_IF_ERROR(fem->cholesky().solve(u, &x));
+    const Eigen::Index c0 = update.w.cols();
+    update.w.conservativeResize(nfree, c0 + nf);
+    update.w.rightCols(nf) = x;
+    for (Eigen::Index j = 0; j < nf; ++j) {
+      const std::size_t i = fresh[static_cast<std::size_t>(j)];
+      update.column[i] = static_cast<int>(c0 + j);
+      update.normals.push_back(normals[i]);
+    }
+  }
+  update.wa.resize(nfree, m);
+  Eigen::MatrixXd sm(m, m);
+  for (Eigen::Index a = 0; a < m; ++a) {
+    const std::size_t i = in_contact[static_cast<std::size_t>(a)];
+    update.wa.col(a) = update.w.col(update.column[i]);
+  }
+  for (Eigen::Index a = 0; a < m; ++a) {
+    const std::size_t i = in_contact[static_cast<std::size_t>(a)];
+    const Eigen::Vector3d& n = update.normals[static_cast<std::size_t>(update.column[i])];
+    Eigen::RowVectorXd row = Eigen::RowVectorXd::Zero(m);
+    for_free_nodes(i, [&](int d0, double c) {
+      row.noalias() += c * n.transpose() * update.wa.middleRows<3>(d0);
+    });
+    sm.row(a) = row;
+    sm(a, a) += 1 / stiffness[i];
+  }
+  update.s.compute(0.5 * (sm + sm.transpose()));
+  if (update.s.info() != Eigen::Success) return internal_error("contact: penalty update failed");
+  return {};
+}
+
+Status ContactSolver::Impl::precondition(const Eigen::VectorXd& r, Eigen::VectorXd* z) const {
+  HC_RETURN_IF_ERROR(fem->cholesky().solve(r, z));
+  if (update.wa.cols() > 0) z->noalias() -= update.wa * update.s.solve(update.wa.transpose() * r);
+  return {};
+}
 
 ContactSolver::ContactSolver(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) {}
 ContactSolver::ContactSolver(ContactSolver&&) noexcept = default;
@@ -154,14 +290,16 @@ Status ContactSolver::Impl::solve_depth(double depth, ContactSummary* s) {
   const double from = solved_depth;
   const int substeps = std::max(1, static_cast<int>(std::ceil(std::abs(depth - from) / max_step)));
   if (substeps > 100000) return invalid_argument("contact: depth too large for this mesh");
-  int iterations = 0;
+  int iterations = 0, factorizations = 0;
   for (int k = 1; k <= substeps; ++k) {
     const double dk = (k == substeps) ? depth : from + (depth - from) * k / substeps;
     const Status st = solve_depth_once(dk, s);
     iterations += s->iterations;
+    factorizations += s->factorizations;
     if (!st.ok()) return st;
   }
   s->iterations = iterations;
+  s->factorizations = factorizations;
   return {};
 }
 
@@ -193,6 +331,8 @@ Status ContactSolver::Impl::solve_depth_once(double depth, ContactSummary* s) {
   *s = ContactSummary{};
   s->depth_m = depth;
   bool converged = false;
+  double last_change = 0;  // of the last iteration
+  bool set_held = false;   // the last iteration kept the active set
   int it = 0;
   for (; it < options.max_iterations; ++it) {
     fem->update_rotations();
@@ -216,7 +356,6 @@ Status ContactSolver::Impl::solve_depth_once(double depth, ContactSummary* s) {
     // Linearised penalty field: points inside the probe get k n nᵀ (target − x), target = the
     // closest surface point; frictionless, so only the normal part acts. A point's force reaches
     // its nodes by its weights.
-    extra.setZero();
     prev_active = active;
     const MatrixX3d& x = fem->positions();
     // A point on the edge of the contact (a punch's rim) can enter and leave at every iteration:
@@ -226,8 +365,8 @@ Status ContactSolver::Impl::solve_depth_once(double depth, ContactSummary* s) {
     // The held points keep their last tangent planes too: near a punch's rim edge the closest
     // surface point jumps between the face and the edge as a point moves.
     const bool frozen = it >= kFreezeAfter;
+    std::vector<std::size_t> in_contact;
     for (std::size_t i = 0; i < np; ++i) {
-      if (frozen && !active[i]) continue;
       if (!frozen) {
         active[i] = 0;
         if (!(stiffness[i] > 0)) continue;
@@ -239,27 +378,54 @@ Status ContactSolver::Impl::solve_depth_once(double depth, ContactSummary* s) {
         normals[i] = nrm;
         targets[i] = xi - sd * nrm;
       }
-      const Eigen::Vector3d& nrm = normals[i];
-      const Eigen::Vector3d& target = targets[i];
-      add_penalty(i, stiffness[i] * nrm * nrm.transpose());
-      const Eigen::Vector3d f = stiffness[i] * nrm * nrm.dot(target);
-      const ContactPoint& p = points[i];
-      for (int k = 0; k < (p.is_node() ? 1 : 3); ++k) {
-        const int d0 = fem->dof(p.nodes[static_cast<std::size_t>(k)], 0);
-        if (d0 >= 0) extra.segment<3>(d0) += p.weights(k) * f;
-      }
+      if (active[i]) in_contact.push_back(i);
     }
     const MatrixX3d before = x;
-    // The factorisation of an earlier iteration (or depth) preconditions conjugate gradients on
-    // this one's K; K is factorised again only when that does not converge in a few iterations.
-    bool solved = false;
-    if (last_cg_iterations <= kRefactorAbove) {
-      HC_RETURN_IF_ERROR(fem->solve_preconditioned(extra, kReuseIterations, kReuseTolerance,
-                                                   &solved, &last_cg_iterations));
+    // K is solved by conjugate gradients preconditioned by an earlier factorisation (of an earlier
+    // iteration or depth): between iterations the rotations change K little. While few points are
+    // in contact the factorisation is of the elastic K and their penalties are added to it as a
+    // low-rank update (PenaltyUpdate), so it is refactorised only when the rotations have made it
+    // stale; with many, K is factorised with its penalties whenever CG does not converge quickly.
+    const auto m = static_cast<Eigen::Index>(in_contact.size());
+    const bool low_rank =
+        m <= options.max_update_points && m * fem->num_free_dofs() <= kMaxUpdateEntries;
+    if (low_rank && (!update.elastic(*fem) || last_cg_iterations > kRefactorAbove)) {
+      HC_RETURN_IF_ERROR(fem->factorize());
+      ++s->factorizations;
+      update.factor_elastic = true;
+      update.factor_call = fem->cholesky().summary().factorize_calls;
+      update.clear(np);
+      last_cg_iterations = 0;
     }
+    extra.setZero();
+    for (std::size_t i : in_contact) {
+      const Eigen::Vector3d& nrm = normals[i];
+      add_penalty(i, stiffness[i] * nrm * nrm.transpose());
+      const Eigen::Vector3d f = stiffness[i] * nrm * nrm.dot(targets[i]);
+      for_free_nodes(i, [&](int d0, double c) { extra.segment<3>(d0) += c * f; });
+    }
+    CorotationalFem::PcgOptions pcg;
+    pcg.max_iterations = kReuseIterations;
+    pcg.relative_tolerance = kReuseTolerance;
+    CorotationalFem::PcgSummary cg;
+    if (low_rank) {
+      pcg.relative_tolerance = kUpdateTolerance;
+      HC_RETURN_IF_ERROR(prepare_update(in_contact, normals));
+      pcg.precondition = [this](const Eigen::VectorXd& r, Eigen::VectorXd* z) {
+        return precondition(r, z);
+      };
+      HC_RETURN_IF_ERROR(fem->solve_preconditioned(extra, pcg, &cg));
+    } else if (!update.elastic(*fem) && last_cg_iterations <= kRefactorAbove) {
+      HC_RETURN_IF_ERROR(fem->solve_preconditioned(extra, pcg, &cg));
+    }
+    last_cg_iterations = cg.iterations;
+    const bool solved = cg.converged;
     if (!solved) {
       last_cg_iterations = 0;
       HC_RETURN_IF_ERROR(fem->factorize());
+      ++s->factorizations;
+      update.factor_elastic = false;
+      update.clear(np);
       HC_RETURN_IF_ERROR(fem->solve(zero, extra));
     }
     const double change = (fem->positions() - before).cwiseAbs().maxCoeff();
@@ -267,7 +433,18 @@ Status ContactSolver::Impl::solve_depth_once(double depth, ContactSummary* s) {
       keep[i] = active[i] &&
                 normals[i].dot(targets[i] - surface.position(fem->positions(), i)) > 0;
     const bool same_set = active == prev_active;
-    if (change <= tolerance && (same_set || frozen)) {
+    // With the active set held the iteration contracts linearly: at rate ρ what remains after a
+    // change is at most change ρ / (1 − ρ), so the iteration that would only confirm it is
+    // skipped. ρ is the largest rate seen over two iterations that both kept the set (this
+    // solver's earlier depths included), with a margin.
+    if (same_set && set_held && last_change > 0)
+      contraction = std::max(contraction, change / last_change);
+    const double rho = kRateMargin * contraction;
+    const bool contracted = same_set && contraction > 0 && rho < kMaxRate &&
+                            change * rho / (1 - rho) <= tolerance;
+    set_held = same_set;
+    last_change = change;
+    if ((change <= tolerance || contracted) && (same_set || frozen)) {
       converged = true;
       ++it;
       break;
@@ -328,14 +505,16 @@ Status ContactSolver::solve_force(double force_n, ContactSummary* summary) {
   double hi = -1, f_hi = 0;
   double d = (s.last_force > 0 && s.last_depth > 0) ? s.last_depth * force_n / s.last_force
                                                     : 1e-3 * s.size;
-  int total_iterations = 0;
+  int total_iterations = 0, total_factorizations = 0;
   ContactSummary cs;
   for (int it = 0; it < s.options.max_force_iterations; ++it) {
     HC_RETURN_IF_ERROR(s.solve_depth(d, &cs));
     total_iterations += cs.iterations;
+    total_factorizations += cs.factorizations;
     const double f = cs.force_n;
     if (std::abs(f - force_n) <= tol) {
       cs.iterations = total_iterations;
+      cs.factorizations = total_factorizations;
       *summary = cs;
       return {};
     }
@@ -358,6 +537,7 @@ Status ContactSolver::solve_force(double force_n, ContactSummary* summary) {
         // when it is within 1 %.
         if (std::abs(f - force_n) <= 0.01 * force_n) {
           cs.iterations = total_iterations;
+      cs.factorizations = total_factorizations;
           *summary = cs;
           return {};
         }
@@ -370,6 +550,7 @@ Status ContactSolver::solve_force(double force_n, ContactSummary* summary) {
     d = next;
   }
   cs.iterations = total_iterations;
+      cs.factorizations = total_factorizations;
   *summary = cs;
   return failed_precondition("contact: force control did not reach " + std::to_string(force_n) +
                              " N (last " + std::to_string(cs.force_n) + " N at depth " +

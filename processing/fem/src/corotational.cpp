@@ -1,5 +1,8 @@
 #include "processing/fem/corotational.h"
 
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+
 #include <Eigen/Cholesky>
 #include <Eigen/Geometry>
 #include <algorithm>
@@ -52,19 +55,27 @@ Eigen::Matrix3d polar_rotation(const Eigen::Matrix3d& a, Eigen::Quaterniond* q,
         r.col(0).cross(a.col(0)) + r.col(1).cross(a.col(1)) + r.col(2).cross(a.col(2));
     const double trace = r.col(0).dot(a.col(0)) + r.col(1).dot(a.col(1)) + r.col(2).dot(a.col(2));
     Eigen::Vector3d omega = omega_num / (std::abs(trace) + 1e-9);
+    bool newton_step = false;
     if (trace > 0) {
       const Eigen::Matrix3d b = a * r.transpose();
       const Eigen::LLT<Eigen::Matrix3d> hessian(trace * Eigen::Matrix3d::Identity() -
                                                 0.5 * (b + b.transpose()));
       if (hessian.info() == Eigen::Success) {
         const Eigen::Vector3d newton = hessian.solve(omega_num);
-        if (newton.allFinite() && newton.norm() <= 4 * omega.norm()) omega = newton;
+        if (newton.allFinite() && newton.norm() <= 4 * omega.norm()) {
+          omega = newton;
+          newton_step = true;
+        }
       }
     }
     const double w = omega.norm();
     if (!(w >= kAngleTolerance)) break;  // also stops on NaN
     *q = Eigen::Quaterniond(Eigen::AngleAxisd(w, omega / w)) * *q;
     q->normalize();
+    // Newton's error squares each step: after one this small the next would be below the
+    // tolerance, so it is not computed (from the warm starts of an equilibrium iteration most
+    // elements need one step).
+    if (newton_step && w * w < kAngleTolerance) break;
   }
   return q->toRotationMatrix();
 }
@@ -105,7 +116,8 @@ struct CorotationalFem::Impl {
   std::vector<int> scatter;
   // Per free node and column c: value index of the node's own diagonal block (rows 0..c).
   std::vector<int> self_start;
-  SparseCholesky cholesky;
+  // Three coordinates per free node: ordered on the nodes' graph.
+  SparseCholesky cholesky{SparseCholesky::Options{.force_supernodal = false, .block_size = 3}};
 
   // Parts of create(): shape-function gradients and volumes (refusing degenerate and inverted
   // tets); the free-node numbering (unreferenced nodes are fixed too); K's upper-triangle pattern
@@ -489,12 +501,17 @@ void CorotationalFem::update_rotations() {
     set_rotations_identity();
     return;
   }
-  const Eigen::Index t = num_elements();
-  for (Eigen::Index e = 0; e < t; ++e) {
-    const auto ue = static_cast<size_t>(e);
-    const Eigen::Matrix3d f = deformation_gradient(s.x, s.mesh.tets, e, s.grads[ue]);
-    s.rotations[ue] = polar_rotation(f, &s.quats[ue], s.options.polar_max_iterations);
-  }
+  // Each element's rotation is its own: one of the few loops here worth spreading over cores.
+  tbb::parallel_for(tbb::blocked_range<Eigen::Index>(0, num_elements(), 1024),
+                    [&](const tbb::blocked_range<Eigen::Index>& range) {
+                      for (Eigen::Index e = range.begin(); e < range.end(); ++e) {
+                        const auto ue = static_cast<size_t>(e);
+                        const Eigen::Matrix3d f =
+                            deformation_gradient(s.x, s.mesh.tets, e, s.grads[ue]);
+                        s.rotations[ue] =
+                            polar_rotation(f, &s.quats[ue], s.options.polar_max_iterations);
+                      }
+                    });
 }
 
 const Eigen::Matrix3d& CorotationalFem::rotation(Eigen::Index e) const {
@@ -679,35 +696,36 @@ Status CorotationalFem::solve(const MatrixX3d& external_forces, const Eigen::Vec
   return {};
 }
 
-Status CorotationalFem::solve_preconditioned(const Eigen::VectorXd& extra_rhs, int max_iterations,
-                                             double relative_tolerance, bool* converged,
-                                             int* iterations) {
+Status CorotationalFem::solve_preconditioned(const Eigen::VectorXd& extra_rhs,
+                                             const PcgOptions& options, PcgSummary* summary) {
   Impl& s = *impl_;
-  *converged = false;
-  if (iterations != nullptr) *iterations = 0;
+  *summary = PcgSummary{};
   HC_ASSIGN_OR_RETURN(const Eigen::VectorXd b, s.load(nullptr, extra_rhs));
   if (!s.cholesky.factorized() || s.num_free == 0) return {};
   Eigen::VectorXd x = s.free_positions();
   // Written out rather than Eigen's ConjugateGradient: that stops on the residual relative to b,
   // and here the warm start leaves an increment a millionth of the positions, so the test must be
-  // relative to the starting residual; the preconditioner is CHOLMOD's factor.
+  // relative to the starting residual; the preconditioner is CHOLMOD's factor (or the caller's).
   const auto k = s.k.selfadjointView<Eigen::Upper>();
+  const auto apply = [&](const Eigen::VectorXd& r, Eigen::VectorXd* z) {
+    return options.precondition ? options.precondition(r, z) : s.cholesky.solve(r, z);
+  };
   Eigen::VectorXd r = b - k * x;
   Eigen::VectorXd z;
-  HC_RETURN_IF_ERROR(s.cholesky.solve(r, &z));
+  HC_RETURN_IF_ERROR(apply(r, &z));
   double rz = r.dot(z);
-  const double stop = relative_tolerance * relative_tolerance * rz;
+  const double stop = options.relative_tolerance * options.relative_tolerance * rz;
   Eigen::VectorXd p = z, kp(b.size());
   int it = 0;
   bool done = !(rz > 0);  // already the solution
-  for (; !done && it < max_iterations; ++it) {
+  for (; !done && it < options.max_iterations; ++it) {
     kp.noalias() = k * p;
     const double pkp = p.dot(kp);
     if (!(pkp > 0) || !std::isfinite(pkp)) break;  // K not positive definite along p
     const double alpha = rz / pkp;
     x += alpha * p;
     r -= alpha * kp;
-    HC_RETURN_IF_ERROR(s.cholesky.solve(r, &z));
+    HC_RETURN_IF_ERROR(apply(r, &z));
     const double rz_next = r.dot(z);
     if (rz_next <= stop) {
       done = true;
@@ -717,10 +735,10 @@ Status CorotationalFem::solve_preconditioned(const Eigen::VectorXd& extra_rhs, i
     p = z + (rz_next / rz) * p;
     rz = rz_next;
   }
-  if (iterations != nullptr) *iterations = it;
+  summary->iterations = it;
   if (!done || !x.allFinite()) return {};
   s.set_free_positions(x);
-  *converged = true;
+  summary->converged = true;
   return {};
 }
 

@@ -85,9 +85,12 @@ Status run_incremental(CorotationalFem* fem, const MaterialModel& material, cons
   if (options.update_within_step) contact.set_material(&material);
   ProgressTask task(options.progress, "load steps", static_cast<std::uint64_t>(options.steps));
   for (int k = 1; k <= options.steps; ++k) {
-    // Explicit update: parameters from the strain of the last converged step.
-    fem->update_rotations();
-    update_params_from_strain(fem, material);
+    // Explicit update: parameters from the strain of the last converged step (constant ones were
+    // set above).
+    if (material.strain_dependent()) {
+      fem->update_rotations();
+      update_params_from_strain(fem, material);
+    }
     const Load step_load{load.control, load.value * k / options.steps};
     ContactSummary cs;
     const Status st = contact.solve(step_load, &cs);

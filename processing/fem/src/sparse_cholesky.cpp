@@ -3,6 +3,7 @@
 #include <cholmod.h>
 
 #include <string>
+#include <vector>
 
 #include "common/openmp.h"
 
@@ -53,6 +54,59 @@ struct SparseCholesky::Impl {
   }
 
   // A non-owning CHOLMOD view of an Eigen upper-triangular CSC matrix (no copy).
+  // f() with CHOLMOD set to use one ordering method.
+  template <typename F>
+  cholmod_factor* with_one_method(int ordering, F&& f) {
+    const int methods = common.nmethods;
+    const auto first = common.method[0];
+    common.nmethods = 1;
+    common.method[0].ordering = ordering;
+    cholmod_factor* result = f();
+    common.nmethods = methods;
+    common.method[0] = first;
+    return result;
+  }
+
+  // The fill-reducing ordering of `upper`'s blocks of b rows, expanded to the rows: CHOLMOD's
+  // nested dissection of the blocks' graph. Trying AMD and METIS too, as for other matrices,
+  // costs twice as much: on the default Hertz scene's 6,834 nodes (20,502 rows) the three took
+  // 96 ms, NESDIS alone 49 ms, and NESDIS gave the least fill (10.8M entries; METIS 10.9M, AMD
+  // 15.3M).
+  Result<std::vector<int>> block_ordering(const SparseMatrix& upper, int b) {
+    const Eigen::Index nb = upper.rows() / b;
+    // The blocks' pattern, column by column (upper triangle: a block column's rows are sorted
+    // blocks, each once).
+    SparseMatrix blocks(nb, nb);
+    std::vector<int> seen(static_cast<std::size_t>(nb), -1), rows;
+    std::vector<Eigen::Triplet<double, int>> entries;
+    for (Eigen::Index jb = 0; jb < nb; ++jb) {
+      rows.clear();
+      for (int k = 0; k < b; ++k) {
+        for (SparseMatrix::InnerIterator it(upper, jb * b + k); it; ++it) {
+          const int ib = static_cast<int>(it.row() / b);
+          if (seen[static_cast<std::size_t>(ib)] == jb) continue;
+          seen[static_cast<std::size_t>(ib)] = static_cast<int>(jb);
+          rows.push_back(ib);
+        }
+      }
+      for (int ib : rows) entries.emplace_back(ib, static_cast<int>(jb), 1.0);
+    }
+    blocks.setFromTriplets(entries.begin(), entries.end());
+    cholmod_sparse bv = view(blocks);
+    cholmod_factor* f = with_one_method(CHOLMOD_NESDIS, [&] { return cholmod_analyze(&bv, &common); });
+    if (f == nullptr) {
+      return internal_error("sparse Cholesky: ordering the blocks failed (CHOLMOD status " +
+                            std::to_string(common.status) + ")");
+    }
+    const int* block_perm = static_cast<const int*>(f->Perm);
+    std::vector<int> perm(static_cast<std::size_t>(upper.rows()));
+    for (Eigen::Index i = 0; i < nb; ++i)
+      for (int k = 0; k < b; ++k)
+        perm[static_cast<std::size_t>(i * b + k)] = block_perm[i] * b + k;
+    cholmod_free_factor(&f, &common);
+    return perm;
+  }
+
   static cholmod_sparse view(const SparseMatrix& a) {
     cholmod_sparse s{};
     s.nrow = static_cast<size_t>(a.rows());
@@ -103,7 +157,15 @@ Status SparseCholesky::analyze(const SparseMatrix& upper) {
   s.factorized = false;
   cholmod_sparse a = Impl::view(upper);
   const SerialOpenMpScope serial;
-  s.factor = cholmod_analyze(&a, &s.common);
+  const int b = s.options.block_size;
+  if (b > 1 && upper.rows() % b == 0 && upper.rows() > b) {
+    HC_ASSIGN_OR_RETURN(std::vector<int> perm, s.block_ordering(upper, b));
+    s.factor = s.with_one_method(CHOLMOD_GIVEN, [&] {
+      return cholmod_analyze_p(&a, perm.data(), nullptr, 0, &s.common);
+    });
+  } else {
+    s.factor = cholmod_analyze(&a, &s.common);
+  }
   if (s.factor == nullptr) {
     return internal_error("sparse Cholesky: symbolic analysis failed (CHOLMOD status " +
                           std::to_string(s.common.status) + ")");

@@ -189,23 +189,27 @@ TEST(Corotational, PreconditionedSolveMatchesTheDirectSolve) {
   fem->set_uniform_params(lambda_alpha_from_youngs_poisson(1e6, 0.3));
   Eigen::VectorXd extra = Eigen::VectorXd::Zero(fem->num_free_dofs());
   for (int i : nodes_on_plane(mesh, 0, 0.04, 1e-12)) extra(fem->dof(i, 2)) = -0.5;
-  bool converged = true;
+  CorotationalFem::PcgOptions options;
+  options.max_iterations = 100;
+  options.relative_tolerance = 1e-10;
+  CorotationalFem::PcgSummary summary;
   fem->assemble();
-  ASSERT_TRUE(fem->solve_preconditioned(extra, 100, 1e-10, &converged).ok());
-  EXPECT_FALSE(converged);  // nothing factorised yet
+  ASSERT_TRUE(fem->solve_preconditioned(extra, options, &summary).ok());
+  EXPECT_FALSE(summary.converged);  // nothing factorised yet
   // Factorise K at rest, then bend the beam: the rotations change K.
   ASSERT_TRUE(fem->factorize().ok());
   ASSERT_TRUE(fem->solve(MatrixX3d::Zero(mesh.num_nodes(), 3), extra).ok());
   fem->update_rotations();
   fem->assemble();
   const MatrixX3d start = fem->positions();
-  ASSERT_TRUE(fem->solve_preconditioned(extra, 1, 1e-10, &converged).ok());
-  EXPECT_FALSE(converged);
+  CorotationalFem::PcgOptions one = options;
+  one.max_iterations = 1;
+  ASSERT_TRUE(fem->solve_preconditioned(extra, one, &summary).ok());
+  EXPECT_FALSE(summary.converged);
   EXPECT_EQ(fem->positions(), start);
-  int iterations = 0;
-  ASSERT_TRUE(fem->solve_preconditioned(extra, 100, 1e-10, &converged, &iterations).ok());
-  ASSERT_TRUE(converged);
-  EXPECT_GT(iterations, 1);
+  ASSERT_TRUE(fem->solve_preconditioned(extra, options, &summary).ok());
+  ASSERT_TRUE(summary.converged);
+  EXPECT_GT(summary.iterations, 1);
   const MatrixX3d cg = fem->positions();
   ASSERT_TRUE(fem->set_positions(start).ok());
   ASSERT_TRUE(fem->factorize().ok());

@@ -49,6 +49,11 @@ struct ContactOptions {
   // distance to a probe's side out sideways; advancing the probe in sub-steps keeps nodes on the
   // face they met.
   double max_depth_step_m = 0;
+  // While at most this many points are in contact their penalties reach K's factorisation as a
+  // low-rank update (one solve per point entering contact; a dense system of this size per
+  // iteration), so contact changes do not make it stale; with more, or 0, K is factorised with
+  // them whenever the factorisation has gone stale.
+  int max_update_points = 400;
   // Where contact is evaluated: the boundary nodes plus, on faces coarser than the probe, a lattice
   // of points on the faces (contact_surface.h), so that a probe cannot slip between nodes.
   ContactSamplingOptions sampling;
@@ -61,6 +66,7 @@ struct ContactSummary {
   double force_n = 0;    // total contact force along the probe direction (> 0 when pushing)
   int active_nodes = 0;  // contact points in contact (boundary nodes and face points)
   int iterations = 0;    // equilibrium iterations (summed over secant steps under force control)
+  int factorizations = 0;  // numeric factorisations of K among them
   double max_penetration_m = 0;
   bool converged = false;
 };

@@ -26,6 +26,7 @@
 
 #include <Eigen/Core>
 #include <array>
+#include <functional>
 #include <memory>
 #include <vector>
 
@@ -181,16 +182,27 @@ class CorotationalFem {
   // targets).
   Status solve(const MatrixX3d& external_forces, const Eigen::VectorXd& extra_rhs);
 
-  // Solves the system of solve(zero forces, extra_rhs) with the assembled K's current values by
-  // conjugate gradients, preconditioned by the last factorisation (of an earlier K of this model:
+  // Conjugate gradients for the system of solve(zero forces, extra_rhs) with the assembled K's
+  // current values, preconditioned by the last factorisation (of an earlier K of this model:
   // between equilibrium iterations the rotations and contact terms change K little, and a few
   // iterations, each a product with K and one solve with the factor, cost less than a numeric
-  // factorisation), starting from the current positions. Stops when the preconditioned residual
-  // norm is below relative_tolerance times its value at the start; *converged is false, and the
-  // positions are unchanged, when max_iterations do not reach that or there is no factorisation.
-  Status solve_preconditioned(const Eigen::VectorXd& extra_rhs, int max_iterations,
-                              double relative_tolerance, bool* converged,
-                              int* iterations = nullptr);
+  // factorisation), starting from the current positions.
+  struct PcgOptions {
+    int max_iterations = 20;
+    // Converged when the preconditioned residual norm is below this times its value at the start.
+    double relative_tolerance = 1e-6;
+    // z = M⁻¹ r for an M close to K on the free dofs; empty = the solve with the factorisation
+    // (contact adds its penalties to the factor by a low-rank update).
+    std::function<Status(const Eigen::VectorXd& r, Eigen::VectorXd* z)> precondition;
+  };
+  struct PcgSummary {
+    bool converged = false;
+    int iterations = 0;
+  };
+  // When not converged within max_iterations, or there is no factorisation, the positions are
+  // unchanged.
+  Status solve_preconditioned(const Eigen::VectorXd& extra_rhs, const PcgOptions& options,
+                              PcgSummary* summary);
 
   // One co-rotational static step: update_rotations(), assemble(), factorize(), solve(F).
   Status step(const MatrixX3d& external_forces);

@@ -30,6 +30,10 @@ class SparseCholesky {
     // CHOLMOD's automatic choice between simplicial and supernodal factorisation (CHOLMOD_AUTO)
     // when false; force supernodal when true.
     bool force_supernodal = false;
+    // Unknowns come in blocks of this many consecutive rows that share one sparsity pattern (an
+    // FEM's coordinates per node): the fill-reducing ordering is then computed on the blocks'
+    // graph, block_size² times smaller, and expanded. 1 = order the matrix itself.
+    int block_size = 1;
   };
 
   struct Summary {
