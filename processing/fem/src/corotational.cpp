@@ -2,6 +2,7 @@
 
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
+#include <tbb/task_arena.h>
 
 #include <Eigen/Cholesky>
 #include <Eigen/Geometry>
@@ -502,16 +503,18 @@ void CorotationalFem::update_rotations() {
     return;
   }
   // Each element's rotation is its own: one of the few loops here worth spreading over cores.
-  tbb::parallel_for(tbb::blocked_range<Eigen::Index>(0, num_elements(), 1024),
-                    [&](const tbb::blocked_range<Eigen::Index>& range) {
-                      for (Eigen::Index e = range.begin(); e < range.end(); ++e) {
-                        const auto ue = static_cast<size_t>(e);
-                        const Eigen::Matrix3d f =
-                            deformation_gradient(s.x, s.mesh.tets, e, s.grads[ue]);
-                        s.rotations[ue] =
-                            polar_rotation(f, &s.quats[ue], s.options.polar_max_iterations);
-                      }
-                    });
+  // Isolated: callers run models in parallel (one per example), and a thread waiting here must
+  // not pick up another model's work in the middle of this one's.
+  const auto rotate = [&](const tbb::blocked_range<Eigen::Index>& range) {
+    for (Eigen::Index e = range.begin(); e < range.end(); ++e) {
+      const auto ue = static_cast<size_t>(e);
+      const Eigen::Matrix3d f = deformation_gradient(s.x, s.mesh.tets, e, s.grads[ue]);
+      s.rotations[ue] = polar_rotation(f, &s.quats[ue], s.options.polar_max_iterations);
+    }
+  };
+  tbb::this_task_arena::isolate([&] {
+    tbb::parallel_for(tbb::blocked_range<Eigen::Index>(0, num_elements(), 1024), rotate);
+  });
 }
 
 const Eigen::Matrix3d& CorotationalFem::rotation(Eigen::Index e) const {
