@@ -68,10 +68,12 @@ Status FitExample::simulate_full(const BaseMaterial& material) {
 void FitExample::set_material(const BaseMaterial& material) {
   const Eigen::Index t = fem_.num_elements();
   const Eigen::MatrixXd p = weights_ * material.values();  // #T by |p|, before projection
-  if (model_ == BaseModel::kIsotropic) {
+  // The material's own model: the start of a transverse fit simulates an isotropic unit material.
+  const BaseModel model = material.model();
+  if (model == BaseModel::kIsotropic) {
     std::vector<fem::LambdaAlpha> la(static_cast<std::size_t>(t));
     for (Eigen::Index e = 0; e < t; ++e) {
-      const Eigen::VectorXd q = project_feasible(model_, p.row(e).transpose(), material.limits());
+      const Eigen::VectorXd q = project_feasible(model, p.row(e).transpose(), material.limits());
       // Lame (lambda, mu) as Eq. 4.6's (lambda G + alpha H): alpha = lambda, "lambda" = 2 (lambda + mu).
       la[static_cast<std::size_t>(e)] = {2 * (q(0) + q(1)), q(0)};
     }
@@ -82,7 +84,7 @@ void FitExample::set_material(const BaseMaterial& material) {
   std::vector<Matrix6d> em(static_cast<std::size_t>(t));
   for (Eigen::Index e = 0; e < t; ++e)
     em[static_cast<std::size_t>(e)] = elasticity_matrix(
-        model_, project_feasible(model_, p.row(e).transpose(), material.limits()));
+        model, project_feasible(model, p.row(e).transpose(), material.limits()));
   (void)fem_.set_elasticity(std::move(em));
 }
 
