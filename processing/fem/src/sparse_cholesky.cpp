@@ -144,6 +144,7 @@ SparseCholesky::SparseCholesky() : SparseCholesky(Options{}) {}
 SparseCholesky::SparseCholesky(const Options& options) : impl_(std::make_unique<Impl>()) {
   impl_->options = options;
   impl_->common.supernodal = options.force_supernodal ? CHOLMOD_SUPERNODAL : CHOLMOD_AUTO;
+  if (options.amd_only) impl_->common.nmethods = 1;  // method[0] is AMD
 }
 SparseCholesky::~SparseCholesky() = default;
 SparseCholesky::SparseCholesky(SparseCholesky&&) noexcept = default;

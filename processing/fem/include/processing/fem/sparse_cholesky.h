@@ -34,6 +34,9 @@ class SparseCholesky {
     // FEM's coordinates per node): the fill-reducing ordering is then computed on the blocks'
     // graph, block_size² times smaller, and expanded. 1 = order the matrix itself.
     int block_size = 1;
+    // AMD alone instead of the best of AMD, METIS and nested dissection: a fast analysis whose
+    // fill is an upper bound of the best ordering's, to estimate what a factorisation would cost.
+    bool amd_only = false;
   };
 
   struct Summary {
