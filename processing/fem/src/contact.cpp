@@ -507,15 +507,19 @@ Status ContactSolver::solve_force(double force_n, ContactSummary* summary) {
                                                     : 1e-3 * s.size;
   int total_iterations = 0, total_factorizations = 0;
   ContactSummary cs;
+  // The last depth's summary with the work of every depth tried.
+  const auto report = [&] {
+    cs.iterations = total_iterations;
+    cs.factorizations = total_factorizations;
+    *summary = cs;
+  };
   for (int it = 0; it < s.options.max_force_iterations; ++it) {
     HC_RETURN_IF_ERROR(s.solve_depth(d, &cs));
     total_iterations += cs.iterations;
     total_factorizations += cs.factorizations;
     const double f = cs.force_n;
     if (std::abs(f - force_n) <= tol) {
-      cs.iterations = total_iterations;
-      cs.factorizations = total_factorizations;
-      *summary = cs;
+      report();
       return {};
     }
     if (f < force_n) {
@@ -536,9 +540,7 @@ Status ContactSolver::solve_force(double force_n, ContactSummary* summary) {
         // no depth gives the target more closely at this mesh resolution. Accept the nearest side
         // when it is within 1 %.
         if (std::abs(f - force_n) <= 0.01 * force_n) {
-          cs.iterations = total_iterations;
-      cs.factorizations = total_factorizations;
-          *summary = cs;
+          report();
           return {};
         }
         break;
@@ -549,9 +551,7 @@ Status ContactSolver::solve_force(double force_n, ContactSummary* summary) {
     }
     d = next;
   }
-  cs.iterations = total_iterations;
-      cs.factorizations = total_factorizations;
-  *summary = cs;
+  report();
   return failed_precondition("contact: force control did not reach " + std::to_string(force_n) +
                              " N (last " + std::to_string(cs.force_n) + " N at depth " +
                              std::to_string(cs.depth_m) + " m)");
