@@ -4,6 +4,8 @@
 #include <gtest/gtest.h>
 
 #include <Eigen/Cholesky>
+#include <Eigen/SparseCholesky>
+#include <algorithm>
 #include <vector>
 
 namespace hc::fem {
@@ -48,13 +50,16 @@ TEST(SparseCholesky, MatchesDenseLltOneAndManyRightHandSides) {
 }
 
 // Orderings computed on the graph of 3-row blocks (block_size) or by AMD alone (amd_only) are
-// other permutations of the same factorisation: the same solution as the dense LLT. Blocks of a
-// 3-D grid Laplacian (each node's 3 rows share its pattern, as an FEM's coordinates do): AMD
-// alone fills at least as much as the best of AMD, METIS and nested dissection.
+// other permutations of the same factorisation: the same solution as Eigen's own sparse LDLT. The
+// matrix: a 3-D grid Laplacian with 3 rows per node sharing its pattern, as an FEM's coordinates
+// do. The default tries AMD, METIS and nested dissection and keeps the fewest flops
+// (sparse_cholesky.cpp); on this 16³ grid a nested dissection wins, so AMD alone costs more
+// (measured 1.61e9 against 1.27e9 flops; the block ordering 0.84e9).
 TEST(SparseCholesky, BlockAndAmdOrderingsSolveTheSameSystem) {
-  constexpr int kSide = 8, kNodes = kSide * kSide * kSide, kRows = 3 * kNodes;
-  Eigen::MatrixXd a = Eigen::MatrixXd::Zero(kRows, kRows);
+  constexpr int kSide = 16, kRows = 3 * kSide * kSide * kSide;
   const auto node = [](int x, int y, int z) { return (z * kSide + y) * kSide + x; };
+  std::vector<Eigen::Triplet<double>> t;
+  Eigen::VectorXd diagonal = Eigen::VectorXd::Constant(kRows, 1.0);
   for (int z = 0; z < kSide; ++z)
     for (int y = 0; y < kSide; ++y)
       for (int x = 0; x < kSide; ++x) {
@@ -64,20 +69,21 @@ TEST(SparseCholesky, BlockAndAmdOrderingsSolveTheSameSystem) {
           if (q[0] >= kSide || q[1] >= kSide || q[2] >= kSide) continue;
           const int j = node(q[0], q[1], q[2]);
           for (int c = 0; c < 3; ++c)
-            for (int d = 0; d < 3; ++d) a(3 * i + c, 3 * j + d) = a(3 * j + d, 3 * i + c) = -0.1;
+            for (int d = 0; d < 3; ++d) {
+              t.emplace_back(std::min(3 * i + c, 3 * j + d), std::max(3 * i + c, 3 * j + d), -0.1);
+              diagonal(3 * i + c) += 0.1;
+              diagonal(3 * j + d) += 0.1;
+            }
         }
       }
-  for (int i = 0; i < kRows; ++i) a(i, i) = a.row(i).cwiseAbs().sum() + 1.0;
-  std::vector<Eigen::Triplet<double>> t;
-  for (int j = 0; j < kRows; ++j)
-    for (int i = 0; i <= j; ++i)
-      if (a(i, j) != 0) t.emplace_back(i, j, a(i, j));
+  for (int i = 0; i < kRows; ++i) t.emplace_back(i, i, diagonal(i));  // diagonally dominant
   SparseMatrix upper(kRows, kRows);
   upper.setFromTriplets(t.begin(), t.end());
   upper.makeCompressed();
   const Eigen::VectorXd b = Eigen::VectorXd::LinSpaced(kRows, -1.0, 2.0);
-  const Eigen::VectorXd expected = a.llt().solve(b);
-  double best_fill = 0;
+  const Eigen::SparseMatrix<double> full = upper.selfadjointView<Eigen::Upper>();
+  const Eigen::VectorXd expected = Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>>(full).solve(b);
+  double default_flops = 0;
   for (const SparseCholesky::Options& o :
        {SparseCholesky::Options{}, SparseCholesky::Options{.block_size = 3},
         SparseCholesky::Options{.amd_only = true}}) {
@@ -86,9 +92,9 @@ TEST(SparseCholesky, BlockAndAmdOrderingsSolveTheSameSystem) {
     Eigen::VectorXd x;
     ASSERT_TRUE(chol.solve(b, &x).ok());
     EXPECT_LT((x - expected).cwiseAbs().maxCoeff(), 1e-12);
-    if (best_fill == 0) best_fill = chol.summary().nnz_factor;
+    if (default_flops == 0) default_flops = chol.summary().flops;
     if (o.amd_only) {
-      EXPECT_GE(chol.summary().nnz_factor, best_fill);
+      EXPECT_GT(chol.summary().flops, default_flops);
     }
   }
 }
