@@ -73,6 +73,8 @@ int reconstruction(const std::string& path) {
   fmt::print("  samples {:>8}  (pool {}, uniform pass {})   {:6.2f} s\n", ss.samples, ss.pool,
              ss.uniform_samples, t_sampling);
   fmt::print("  balls   {:>8}  (Delaunay, poles, labels)     {:6.2f} s\n", balls->size(), t_balls);
+  fmt::print("          ({} poles of {} Voronoi vertices; {} interior)\n", ms.poles,
+             ms.voronoi_vertices, ms.interior);
   fmt::print("  regular triangulation of the balls            {:6.2f} s\n", t_rt);
   fmt::print("  crust   {:>8} triangles                     {:6.2f} s\n", crust->num_triangles(),
              t_faces);
@@ -85,8 +87,11 @@ int reconstruction(const std::string& path) {
   t = Clock::now();
   CrustSummary whole;
   auto valid = power_crust_3d(*balls, &whole);
-  fmt::print("  power_crust_3d (triangulation, crust, retries, checks): {}, {} triangles  {:6.2f} s\n",
-             valid.ok() ? "valid" : valid.status().to_string(), whole.triangles, since(t));
+  fmt::print(
+      "  power_crust_3d (triangulation, crust, retries, checks): {}, {} triangles, {} hidden "
+      "balls  {:6.2f} s\n",
+      valid.ok() ? "valid" : valid.status().to_string(), whole.triangles, whole.hidden_balls,
+      since(t));
   fmt::print("  sampling + balls + power_crust_3d                 {:6.2f} s\n",
              t_sampling + t_balls + since(t));
   return 0;

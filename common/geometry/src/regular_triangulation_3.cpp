@@ -1,11 +1,14 @@
 // Regular (and Delaunay) triangulations in 3-D: CGAL's Regular_triangulation_3 on the Epick kernel
-// (exact predicates). One instantiation serves both: the Delaunay triangulation is the regular one
-// with zero weights. Power vertices are constructed in double: the exact fallback of CGAL's
-// robust circumcentre traits (Robust_weighted_circumcenter_filtered_traits_3) was tried and is
-// unusable here, because a power crust is degenerate by design (every sample is the power vertex
-// of all the cells of the balls through it), so nearly every cell fell back to GMP rationals
-// (a 1 x 1 x 1 cube at r_min 0.01 ran for over 10 minutes). The crust merges the power vertices
-// that rounding left a few ulps apart instead (power_crust.h).
+// (exact predicates). It serves both: the Delaunay triangulation is the regular one with zero
+// weights (large unweighted inputs take CGAL's Delaunay triangulation, below). Power vertices are
+// constructed in double: the exact fallback of CGAL's robust circumcentre traits
+// (Robust_weighted_circumcenter_filtered_traits_3) was tried and is unusable here, because a power
+// crust is degenerate by design (every sample is the power vertex of all the cells of the balls
+// through it), so nearly every cell fell back to GMP rationals (a 1 x 1 x 1 cube at r_min 0.01 ran
+// for over 10 minutes). The crust merges the power vertices that rounding left a few ulps apart
+// instead (power_crust.h).
+#include <CGAL/Delaunay_triangulation_3.h>
+#include <CGAL/Delaunay_triangulation_cell_base_3.h>
 #include <CGAL/Exact_predicates_inexact_constructions_kernel.h>
 #include <CGAL/Regular_triangulation_3.h>
 #include <CGAL/Regular_triangulation_cell_base_3.h>
@@ -21,6 +24,7 @@
 #include <tbb/parallel_for.h>
 
 #include <algorithm>
+#include <atomic>
 #include <chrono>
 #include <cmath>
 #include <fstream>
@@ -29,6 +33,7 @@
 #include <numeric>
 #include <string>
 #include <thread>
+#include <type_traits>
 #include <utility>
 
 #include "cgal_support.h"
@@ -53,6 +58,17 @@ using Cb = CGAL::Triangulation_cell_base_with_info_3<int, Gt, Cb0>;
 using Tds = CGAL::Triangulation_data_structure_3<Vb, Cb, CGAL::Parallel_tag>;
 using Lock = CGAL::Spatial_lock_grid_3<CGAL::Tag_priority_blocking>;
 using Rt = CGAL::Regular_triangulation_3<Gt, Tds, Lock>;
+// Large unweighted inputs (the Delaunay triangulations of samples) go through CGAL's Delaunay
+// triangulation instead, whose in-sphere test is cheaper than the power test with zero weights:
+// the 100k fandisk samples of bench_abstraction 0.45 -> 0.38 s with the extraction. Its cells are
+// the regular triangulation's (the Delaunay one is unique for points in general position), and a
+// large input's output is sorted into a canonical order either way, so the output is the same
+// (tested). Small inputs keep CGAL's container order, so they stay on the regular one.
+using DVb = CGAL::Triangulation_vertex_base_with_info_3<int, K>;
+using DCb =
+    CGAL::Triangulation_cell_base_with_info_3<int, K, CGAL::Delaunay_triangulation_cell_base_3<K>>;
+using DTds = CGAL::Triangulation_data_structure_3<DVb, DCb, CGAL::Parallel_tag>;
+using Dt = CGAL::Delaunay_triangulation_3<K, DTds, CGAL::Default, Lock>;
 // Below this many points the parallel insertion's set-up costs more than it saves.
 constexpr std::size_t kParallelFrom = 20'000;
 // Spatial locks per axis of the bounding box: 100 inserted the 596,637 balls of
@@ -114,26 +130,32 @@ Status check_input(std::span<const Eigen::Vector3d> points, std::span<const doub
   return {};
 }
 
-Status build_rt(std::span<const Eigen::Vector3d> points, std::span<const double> weights,
-                std::string_view what, Insertion insertion, Rt* rt) {
+// T is Rt or Dt (then `weights` is empty).
+template <class T>
+Status build(std::span<const Eigen::Vector3d> points, std::span<const double> weights,
+             std::string_view what, Insertion insertion, T* tri) {
   HC_RETURN_IF_ERROR(check_input(points, weights, what));
-  std::vector<std::pair<WPoint, int>> input;
+  using P = typename T::Point;
+  std::vector<std::pair<P, int>> input;
   input.reserve(points.size());
   CGAL::Bbox_3 box;
   for (std::size_t i = 0; i < points.size(); ++i) {
-    const double w = weights.empty() ? 0.0 : weights[i];
-    input.emplace_back(WPoint(BPoint(points[i].x(), points[i].y(), points[i].z()), w),
-                       static_cast<int>(i));
-    box += input.back().first.bbox();
+    const BPoint b(points[i].x(), points[i].y(), points[i].z());
+    if constexpr (std::is_same_v<P, WPoint>) {
+      input.emplace_back(WPoint(b, weights.empty() ? 0.0 : weights[i]), static_cast<int>(i));
+    } else {
+      input.emplace_back(b, static_cast<int>(i));
+    }
+    box += b.bbox();
   }
   // The range insertion sorts the points along a Hilbert curve first (spatial_sort). The
   // triangulation does not depend on the insertion order (the perturbation of degenerate
   // predicates is symbolic), so the parallel insertion gives the same cells, in another order.
   std::unique_ptr<Lock> lock;
   if (parallel(points.size(), insertion)) lock = std::make_unique<Lock>(box, kLockGrid);
-  rt->set_lock_data_structure(lock.get());
-  rt->insert(input.begin(), input.end());
-  rt->set_lock_data_structure(nullptr);
+  tri->set_lock_data_structure(lock.get());
+  tri->insert(input.begin(), input.end());
+  tri->set_lock_data_structure(nullptr);
   return {};
 }
 
@@ -160,6 +182,151 @@ std::array<int, 4> spelled(const std::array<int, 4>& v, const std::array<int, 4>
           v[static_cast<std::size_t>(p[2])], v[static_cast<std::size_t>(p[3])]};
 }
 
+template <class T>
+Result<Triangulation3> extract(T& rt, std::span<const Eigen::Vector3d> points,
+                               std::span<const double> weights,
+                               const Triangulate3Options& options) {
+  constexpr std::string_view kWhat = "triangulate_3d";
+  if (rt.dimension() < 3) {
+    return invalid_argument(fmt::format("{}: the {} points span only {} dimension(s); 3 needed",
+                                        kWhat, points.size(),
+                                        rt.dimension() < 0 ? 0 : rt.dimension()));
+  }
+  Triangulation3 out;
+  out.is_vertex.assign(points.size(), 0);
+  for (auto v = rt.finite_vertices_begin(); v != rt.finite_vertices_end(); ++v) {
+    out.is_vertex[static_cast<std::size_t>(v->info())] = 1;
+  }
+  // Large inputs' cells are put in a canonical order (sorted by their canonical corner
+  // spelling), so the output is the same whichever order the threads left them in, and the same
+  // whether the insertion ran in parallel or not; a small input's sequential order is
+  // deterministic already and is kept (the crust's triangulation of each power face starts at
+  // its first cell, so reordering changes output).
+  //
+  // First the cells in the container's order, which is close to their order in memory, so the
+  // passes that dereference them read memory in sequence (each cell's info is its index there);
+  // the output's order and spelling are then made from flat arrays, and the power vertices from
+  // the input arrays rather than through the vertices' handles. Measured on the 3.5 million
+  // cells of bench_abstraction's fandisk balls: 0.86 -> 0.67 s after the insertion (0.57 s with
+  // the balls in spatial order, sampling.cpp).
+  std::vector<typename T::Cell_handle> handles;
+  handles.reserve(rt.number_of_cells());
+  for (auto c = rt.all_cells_begin(); c != rt.all_cells_end(); ++c) {
+    c->info() = static_cast<int>(handles.size());
+    handles.push_back(c);
+  }
+  const std::size_t n = handles.size();
+  // Corners and neighbours of each cell in CGAL's local order.
+  std::vector<std::array<int, 4>> corners(n);
+  std::vector<std::array<int, 4>> adjacent(n);
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n), [&](const auto& range) {
+    for (std::size_t j = range.begin(); j != range.end(); ++j) {
+      const typename T::Cell_handle c = handles[j];
+      for (int k = 0; k < 4; ++k) {
+        const auto v = c->vertex(k);
+        corners[j][static_cast<std::size_t>(k)] = rt.is_infinite(v) ? -1 : v->info();
+        adjacent[j][static_cast<std::size_t>(k)] = c->neighbor(k)->info();
+      }
+    }
+  });
+  // order[i]: the container index of output cell i; position is its inverse.
+  const bool sort = large(points.size());
+  std::vector<std::uint32_t> order(n);
+  if (sort) {
+    struct Key {
+      std::array<int, 4> corners;  // canonical spelling
+      std::uint32_t cell;          // container index
+    };
+    // A counting sort on the first corner (the smallest; bucket 0 for -1, the infinite
+    // cells), then each bucket sorted: a fifth of a comparison sort's time on 3.5 million
+    // cells. In parallel: the cells take their places in a bucket by an atomic counter, in
+    // whatever order the threads arrive, which the sort of the bucket then undoes.
+    const std::size_t buckets = points.size() + 1;
+    const auto bucket = [&](std::size_t j) {
+      return static_cast<std::size_t>(
+          std::min({corners[j][0], corners[j][1], corners[j][2], corners[j][3]}) + 1);
+    };
+    std::vector<std::atomic<std::uint32_t>> fill(buckets);
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n), [&](const auto& range) {
+      for (std::size_t j = range.begin(); j != range.end(); ++j)
+        fill[bucket(j)].fetch_add(1, std::memory_order_relaxed);
+    });
+    std::vector<std::uint32_t> start(buckets + 1, 0);  // bucket b: start[b] .. start[b + 1]
+    for (std::size_t b = 0; b < buckets; ++b) {
+      start[b + 1] = start[b] + fill[b].load(std::memory_order_relaxed);
+      fill[b].store(start[b], std::memory_order_relaxed);
+    }
+    std::vector<Key> sorted(n);
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n), [&](const auto& range) {
+      for (std::size_t j = range.begin(); j != range.end(); ++j) {
+        sorted[fill[bucket(j)].fetch_add(1, std::memory_order_relaxed)] = {
+            spelled(corners[j], canonical_order(corners[j])), static_cast<std::uint32_t>(j)};
+      }
+    });
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, buckets), [&](const auto& r) {
+      for (std::size_t b = r.begin(); b != r.end(); ++b) {
+        std::sort(sorted.begin() + start[b], sorted.begin() + start[b + 1],
+                  [](const Key& x, const Key& y) { return x.corners < y.corners; });
+      }
+    });
+    for (std::size_t i = 0; i < n; ++i) order[i] = sorted[i].cell;
+  } else {
+    std::iota(order.begin(), order.end(), 0U);
+  }
+  std::vector<std::uint32_t> position(n);
+  for (std::size_t i = 0; i < n; ++i) position[order[i]] = static_cast<std::uint32_t>(i);
+  out.cells.resize(n);
+  out.neighbours.resize(n);
+  out.centres.assign(n, Eigen::Vector3d::Constant(std::numeric_limits<double>::quiet_NaN()));
+  out.squared_radii.assign(n, std::numeric_limits<double>::quiet_NaN());
+  const std::span<const std::uint8_t> labels = options.centres_between;
+  // Cell by cell, independent: in parallel.
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n), [&](const auto& range) {
+    for (std::size_t i = range.begin(); i != range.end(); ++i) {
+      const std::size_t j = order[i];
+      const std::array<int, 4> p =
+          sort ? canonical_order(corners[j]) : std::array<int, 4>{0, 1, 2, 3};
+      const std::array<int, 4> v = spelled(corners[j], p);
+      out.cells[i] = v;
+      for (std::size_t k = 0; k < 4; ++k) {
+        out.neighbours[i][k] = static_cast<int>(
+            position[static_cast<std::size_t>(adjacent[j][static_cast<std::size_t>(p[k])])]);
+      }
+      if (v[0] < 0) continue;  // infinite
+      if (!labels.empty()) {
+        const std::uint8_t l = labels[static_cast<std::size_t>(v[0])];
+        if (labels[static_cast<std::size_t>(v[1])] == l &&
+            labels[static_cast<std::size_t>(v[2])] == l &&
+            labels[static_cast<std::size_t>(v[3])] == l) {
+          continue;
+        }
+      }
+      const auto bpt = [&](int k) {
+        const auto q = static_cast<std::size_t>(v[static_cast<std::size_t>(k)]);
+        return BPoint(points[q].x(), points[q].y(), points[q].z());
+      };
+      if constexpr (std::is_same_v<T, Rt>) {
+        const auto wpt = [&](int k) {
+          const auto q = static_cast<std::size_t>(v[static_cast<std::size_t>(k)]);
+          return WPoint(bpt(k), weights.empty() ? 0.0 : weights[q]);
+        };
+        const auto& traits = rt.geom_traits();
+        const WPoint wp = wpt(0), wq = wpt(1), wr = wpt(2), ws = wpt(3);
+        const BPoint o = traits.construct_weighted_circumcenter_3_object()(wp, wq, wr, ws);
+        out.centres[i] = Eigen::Vector3d(o.x(), o.y(), o.z());
+        out.squared_radii[i] = CGAL::to_double(
+            traits.compute_squared_radius_smallest_orthogonal_sphere_3_object()(wp, wq, wr, ws));
+      } else {
+        const BPoint bp = bpt(0), bq = bpt(1), br = bpt(2), bs = bpt(3);
+        const BPoint o = CGAL::circumcenter(bp, bq, br, bs);
+        out.centres[i] = Eigen::Vector3d(o.x(), o.y(), o.z());
+        out.squared_radii[i] = CGAL::squared_distance(o, bp);
+      }
+    }
+  });
+  return out;
+}
+
 }  // namespace
 
 Result<Triangulation3> triangulate_3d(std::span<const Eigen::Vector3d> points,
@@ -171,126 +338,14 @@ Result<Triangulation3> triangulate_3d(std::span<const Eigen::Vector3d> points,
       return invalid_argument(fmt::format("{}: {} points but {} labels", kWhat, points.size(),
                                           options.centres_between.size()));
     }
+    if (weights.empty() && large(points.size())) {
+      Dt dt;
+      HC_RETURN_IF_ERROR(build(points, weights, kWhat, options.insertion, &dt));
+      return extract(dt, points, weights, options);
+    }
     Rt rt;
-    HC_RETURN_IF_ERROR(build_rt(points, weights, kWhat, options.insertion, &rt));
-    if (rt.dimension() < 3) {
-      return invalid_argument(fmt::format("{}: the {} points span only {} dimension(s); 3 needed",
-                                          kWhat, points.size(),
-                                          rt.dimension() < 0 ? 0 : rt.dimension()));
-    }
-    Triangulation3 out;
-    out.is_vertex.assign(points.size(), 0);
-    for (auto v = rt.finite_vertices_begin(); v != rt.finite_vertices_end(); ++v) {
-      out.is_vertex[static_cast<std::size_t>(v->info())] = 1;
-    }
-    // Large inputs' cells are put in a canonical order (sorted by their canonical corner
-    // spelling), so the output is the same whichever order the threads left them in, and the same
-    // whether the insertion ran in parallel or not; a small input's sequential order is
-    // deterministic already and is kept (the crust's triangulation of each power face starts at
-    // its first cell, so reordering changes output).
-    //
-    // First the cells in the container's order, which is close to their order in memory, so the
-    // passes that dereference them read memory in sequence (each cell's info is its index there);
-    // the output's order and spelling are then made from flat arrays, and the power vertices from
-    // the input arrays rather than through the vertices' handles. Measured on the 3.5 million
-    // cells of bench_abstraction's fandisk balls: 0.86 -> 0.67 s after the insertion (0.57 s with
-    // the balls in spatial order, sampling.cpp).
-    std::vector<Rt::Cell_handle> handles;
-    handles.reserve(rt.number_of_cells());
-    for (auto c = rt.all_cells_begin(); c != rt.all_cells_end(); ++c) {
-      c->info() = static_cast<int>(handles.size());
-      handles.push_back(c);
-    }
-    const std::size_t n = handles.size();
-    // Corners and neighbours of each cell in CGAL's local order.
-    std::vector<std::array<int, 4>> corners(n);
-    std::vector<std::array<int, 4>> adjacent(n);
-    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n), [&](const auto& range) {
-      for (std::size_t j = range.begin(); j != range.end(); ++j) {
-        const Rt::Cell_handle c = handles[j];
-        for (int k = 0; k < 4; ++k) {
-          const auto v = c->vertex(k);
-          corners[j][static_cast<std::size_t>(k)] = rt.is_infinite(v) ? -1 : v->info();
-          adjacent[j][static_cast<std::size_t>(k)] = c->neighbor(k)->info();
-        }
-      }
-    });
-    // order[i]: the container index of output cell i; position is its inverse.
-    const bool sort = large(points.size());
-    std::vector<std::uint32_t> order(n);
-    if (sort) {
-      struct Key {
-        std::array<int, 4> corners;  // canonical spelling
-        std::uint32_t cell;          // container index
-      };
-      std::vector<Key> keys(n);
-      tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n), [&](const auto& range) {
-        for (std::size_t j = range.begin(); j != range.end(); ++j) {
-          keys[j] = {spelled(corners[j], canonical_order(corners[j])),
-                     static_cast<std::uint32_t>(j)};
-        }
-      });
-      // A counting sort on the first corner (the smallest, -1 for infinite cells), then each
-      // bucket sorted: a fifth of a comparison sort's time on 3.5 million cells.
-      std::vector<std::uint32_t> start(points.size() + 2, 0);
-      for (const Key& k : keys) ++start[static_cast<std::size_t>(k.corners[0] + 2)];
-      std::partial_sum(start.begin(), start.end(), start.begin());
-      std::vector<Key> sorted(n);
-      for (const Key& k : keys) sorted[start[static_cast<std::size_t>(k.corners[0] + 1)]++] = k;
-      // start[b] is now the end of bucket b (its beginning: start[b - 1], or 0).
-      tbb::parallel_for(tbb::blocked_range<std::size_t>(0, points.size() + 1), [&](const auto& r) {
-        for (std::size_t b = r.begin(); b != r.end(); ++b) {
-          std::sort(sorted.begin() + (b == 0 ? 0 : start[b - 1]), sorted.begin() + start[b],
-                    [](const Key& x, const Key& y) { return x.corners < y.corners; });
-        }
-      });
-      for (std::size_t i = 0; i < n; ++i) order[i] = sorted[i].cell;
-    } else {
-      std::iota(order.begin(), order.end(), 0U);
-    }
-    std::vector<std::uint32_t> position(n);
-    for (std::size_t i = 0; i < n; ++i) position[order[i]] = static_cast<std::uint32_t>(i);
-    out.cells.resize(n);
-    out.neighbours.resize(n);
-    out.centres.assign(n, Eigen::Vector3d::Constant(std::numeric_limits<double>::quiet_NaN()));
-    out.squared_radii.assign(n, std::numeric_limits<double>::quiet_NaN());
-    const auto centre = rt.geom_traits().construct_weighted_circumcenter_3_object();
-    const auto radius =
-        rt.geom_traits().compute_squared_radius_smallest_orthogonal_sphere_3_object();
-    const std::span<const std::uint8_t> labels = options.centres_between;
-    // Cell by cell, independent: in parallel.
-    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n), [&](const auto& range) {
-      for (std::size_t i = range.begin(); i != range.end(); ++i) {
-        const std::size_t j = order[i];
-        const std::array<int, 4> p =
-            sort ? canonical_order(corners[j]) : std::array<int, 4>{0, 1, 2, 3};
-        const std::array<int, 4> v = spelled(corners[j], p);
-        out.cells[i] = v;
-        for (std::size_t k = 0; k < 4; ++k) {
-          out.neighbours[i][k] = static_cast<int>(
-              position[static_cast<std::size_t>(adjacent[j][static_cast<std::size_t>(p[k])])]);
-        }
-        if (v[0] < 0) continue;  // infinite
-        if (!labels.empty()) {
-          const std::uint8_t l = labels[static_cast<std::size_t>(v[0])];
-          if (labels[static_cast<std::size_t>(v[1])] == l &&
-              labels[static_cast<std::size_t>(v[2])] == l &&
-              labels[static_cast<std::size_t>(v[3])] == l) {
-            continue;
-          }
-        }
-        const auto wpt = [&](int k) {
-          const auto q = static_cast<std::size_t>(v[static_cast<std::size_t>(k)]);
-          return WPoint(BPoint(points[q].x(), points[q].y(), points[q].z()),
-                        weights.empty() ? 0.0 : weights[q]);
-        };
-        const WPoint wp = wpt(0), wq = wpt(1), wr = wpt(2), ws = wpt(3);
-        const BPoint o = centre(wp, wq, wr, ws);
-        out.centres[i] = Eigen::Vector3d(o.x(), o.y(), o.z());
-        out.squared_radii[i] = CGAL::to_double(radius(wp, wq, wr, ws));
-      }
-    });
-    return out;
+    HC_RETURN_IF_ERROR(build(points, weights, kWhat, options.insertion, &rt));
+    return extract(rt, points, weights, options);
   });
 }
 
@@ -317,7 +372,7 @@ Result<PowerQuery> nearest_power_3d(std::span<const Eigen::Vector3d> centres,
           fmt::format("{}: {} balls with {} weights", kWhat, centres.size(), weights.size()));
     }
     Rt rt;
-    HC_RETURN_IF_ERROR(build_rt(centres, weights, kWhat, Insertion::kAuto, &rt));
+    HC_RETURN_IF_ERROR(build(centres, weights, kWhat, Insertion::kAuto, &rt));
     PowerQuery out;
     out.power.resize(queries.size());
     out.ball.resize(queries.size());

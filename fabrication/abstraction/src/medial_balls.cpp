@@ -1,6 +1,8 @@
 #include "fabrication/abstraction/medial_balls.h"
 
 #include <fmt/format.h>
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
 
 #include <algorithm>
 #include <chrono>
@@ -155,15 +157,25 @@ Result<Balls3> medial_balls_3d(const Samples3& samples, const InsideTest<3>& ins
     }
   }
   const double keep2 = keep * keep;
-  Balls3 balls;
+  std::vector<std::size_t> kept;
   for (std::size_t c = 0; c < dt.cells.size(); ++c) {
     if (!dt.is_finite(static_cast<int>(c))) continue;
     ++sum.voronoi_vertices;
-    if (!take[c] && !(dt.squared_radii[c] > keep2)) continue;
-    balls.push_back(dt.centres[c], std::sqrt(dt.squared_radii[c]), inside(dt.centres[c]));
+    if (take[c] || dt.squared_radii[c] > keep2) kept.push_back(c);
+  }
+  // The labels in parallel (InsideTest may be called from several threads).
+  std::vector<std::uint8_t> in(kept.size());
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, kept.size()), [&](const auto& range) {
+    for (std::size_t k = range.begin(); k != range.end(); ++k)
+      in[k] = inside(dt.centres[kept[k]]) ? 1 : 0;
+  });
+  Balls3 balls;
+  for (std::size_t k = 0; k < kept.size(); ++k) {
+    const std::size_t c = kept[k];
+    balls.push_back(dt.centres[c], std::sqrt(dt.squared_radii[c]), in[k] != 0);
     std::array<int, 4> def{};
-    for (std::size_t k = 0; k < 4; ++k)
-      def[k] = dt.cells[c][k] < static_cast<int>(n) ? dt.cells[c][k] : -1;
+    for (std::size_t j = 0; j < 4; ++j)
+      def[j] = dt.cells[c][j] < static_cast<int>(n) ? dt.cells[c][j] : -1;
     balls.defining.push_back(def);
     sum.interior += balls.interior.back();
   }

@@ -1,6 +1,8 @@
 #include "fabrication/abstraction/power_crust.h"
 
 #include <fmt/format.h>
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
 
 #include <algorithm>
 #include <array>
@@ -399,6 +401,22 @@ Result<TriangleMesh> crust_faces_3d(const geometry::Triangulation3& rt, const Ba
   // done[c] bit e: the face of c's local edge e (kTetEdges) is made (from another cell of its
   // ring).
   std::vector<std::uint8_t> done(rt.cells.size(), 0);
+  // The sample each cell between interior and exterior balls (the only ones a ring passes) snaps
+  // to, found in parallel; the walk below numbers the vertices in its own order.
+  std::vector<int> snap(rt.cells.size(), -1);
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, rt.cells.size()), [&](const auto& range) {
+    for (std::size_t c = range.begin(); c != range.end(); ++c) {
+      if (!rt.is_finite(static_cast<int>(c))) continue;
+      const auto& cell = rt.cells[c];
+      const std::uint8_t l = interior[static_cast<std::size_t>(cell[0])];
+      if (interior[static_cast<std::size_t>(cell[1])] == l &&
+          interior[static_cast<std::size_t>(cell[2])] == l &&
+          interior[static_cast<std::size_t>(cell[3])] == l) {
+        continue;
+      }
+      snap[c] = shared_sample(rt, balls, c, no_snap);
+    }
+  });
   std::vector<int> ring;
   for (std::size_t c0 = 0; c0 < rt.cells.size(); ++c0) {
     if (!rt.is_finite(static_cast<int>(c0))) continue;
@@ -413,7 +431,7 @@ Result<TriangleMesh> crust_faces_3d(const geometry::Triangulation3& rt, const Ba
       for (const int r : ring) {
         int& v = vertex_of[static_cast<std::size_t>(r)];
         if (v >= 0) continue;
-        const int s = shared_sample(rt, balls, static_cast<std::size_t>(r), no_snap);
+        const int s = snap[static_cast<std::size_t>(r)];
         int* at = s >= 0 ? &vertex_of_sample[static_cast<std::size_t>(s)] : &v;
         if (*at < 0) {
           *at = static_cast<int>(vertices.size());

@@ -126,6 +126,33 @@ TEST(RegularTriangulation3, ParallelInsertionIsRegularAndDeterministic) {
   EXPECT_EQ(cell_sets(*r), cell_sets(*t));
 }
 
+// Large inputs without weights go through CGAL's Delaunay triangulation
+// (regular_triangulation_3.cpp): the same cells, neighbours and order as the regular
+// triangulation with all weights zero, and circumcentres equal to those power vertices up to
+// rounding (both constructed in double, by different formulas).
+TEST(RegularTriangulation3, LargeDelaunayMatchesZeroWeights) {
+  constexpr std::size_t kN = 25'000;
+  Weighted w = random_balls(kN, 0.0, 3);
+  Triangulate3Options parallel;
+  parallel.insertion = Insertion::kParallel;
+  auto delaunay = triangulate_3d(w.points, {}, parallel);
+  auto regular = triangulate_3d(w.points, w.weights, parallel);  // all zero
+  ASSERT_TRUE(delaunay.ok() && regular.ok());
+  ASSERT_GT(delaunay->cells.size(), 5 * kN);
+  ASSERT_EQ(delaunay->cells, regular->cells);
+  EXPECT_EQ(delaunay->neighbours, regular->neighbours);
+  EXPECT_EQ(delaunay->is_vertex, regular->is_vertex);
+  for (std::size_t c = 0; c < delaunay->cells.size(); ++c) {
+    if (!delaunay->is_finite(static_cast<int>(c))) continue;
+    const double r2 = regular->squared_radii[c];
+    // Flat cells on the hull have huge circumspheres; relative to the cell's size.
+    const double tol = 1e-9 * (1.0 + r2);
+    ASSERT_NEAR(delaunay->squared_radii[c], r2, tol) << "cell " << c;
+    ASSERT_LT((delaunay->centres[c] - regular->centres[c]).norm(), 1e-9 * (1.0 + std::sqrt(r2)))
+        << "cell " << c;
+  }
+}
+
 // centres_between: the power vertices of exactly the cells with corners of both labels, equal to
 // those computed for every cell; NaN elsewhere. A label per point or none.
 TEST(RegularTriangulation3, CentresOnlyBetweenLabelsAreTheSame) {

@@ -43,7 +43,8 @@ struct Balls {
 using Balls2 = Balls<2>;
 using Balls3 = Balls<3>;
 
-// Whether a point is inside the shape (the labels of the balls).
+// Whether a point is inside the shape (the labels of the balls). medial_balls_3d calls it from
+// several threads at once.
 template <int D>
 using InsideTest = std::function<bool(const Eigen::Matrix<double, D, 1>&)>;
 

@@ -59,6 +59,9 @@ class SpatialHash {
   std::size_t size() const { return items_.size(); }
 
  private:
+  static constexpr int kBlockBits = 2;  // blocks of 4 cells per axis
+  static std::uint64_t block_base(const Eigen::Matrix<std::int64_t, D, 1>& block, int level);
+  static std::uint64_t inner(const Eigen::Matrix<std::int64_t, D, 1>& offset);
   std::uint64_t slot(const Eigen::Matrix<std::int64_t, D, 1>& cell, int level) const;
   double base_cell_;
   std::vector<int> levels_present_;

@@ -10,7 +10,7 @@ template <int D>
 SpatialHash<D>::SpatialHash(std::span<const Vec> points, std::span<const int> levels,
                             double base_cell)
     : base_cell_(base_cell) {
-  std::size_t table = 16;
+  std::size_t table = std::size_t{1} << (kBlockBits * D);
   while (table < 2 * points.size()) table *= 2;
   start_.assign(table + 1, 0);
   std::vector<std::uint64_t> slots(points.size());
@@ -39,32 +39,53 @@ SpatialHash<D>::SpatialHash(std::span<const Vec> points, std::span<const int> le
                         levels_present_.end());
 }
 
+// Blocks of 4^D cells take consecutive slots (Morton order inside a block) and the blocks are
+// hashed, so the cells a query visits lie in a few runs of the table rather than one cache miss
+// each, the buckets' items follow in the same order, and a query hashes once per block.
 template <int D>
-std::uint64_t SpatialHash<D>::slot(const Eigen::Matrix<std::int64_t, D, 1>& cell, int level) const {
+std::uint64_t SpatialHash<D>::block_base(const Eigen::Matrix<std::int64_t, D, 1>& block,
+                                         int level) {
   constexpr std::uint64_t kPrimes[4] = {73856093ULL, 19349663ULL, 83492791ULL, 2654435761ULL};
   std::uint64_t h = static_cast<std::uint64_t>(level) * kPrimes[3];
-  for (int k = 0; k < D; ++k) h ^= static_cast<std::uint64_t>(cell[k]) * kPrimes[k];
+  for (int k = 0; k < D; ++k) h ^= static_cast<std::uint64_t>(block[k]) * kPrimes[k];
+  // Mix into the low bits, which the table's mask keeps.
   h ^= h >> 29;
-  return h & (start_.size() - 2);
+  h *= 0xBF58476D1CE4E5B9ULL;
+  h ^= h >> 32;
+  return h << (kBlockBits * D);
+}
+
+template <int D>
+std::uint64_t SpatialHash<D>::inner(const Eigen::Matrix<std::int64_t, D, 1>& offset) {
+  std::uint64_t m = 0;
+  for (int k = 0; k < D; ++k) {
+    const auto u = static_cast<std::uint64_t>(offset[k]);
+    for (int b = 0; b < kBlockBits; ++b) m |= ((u >> b) & 1U) << (b * D + k);
+  }
+  return m;
+}
+
+template <int D>
+std::uint64_t SpatialHash<D>::slot(const Eigen::Matrix<std::int64_t, D, 1>& cell, int level) const {
+  constexpr std::int64_t kBlock = std::int64_t{1} << kBlockBits;
+  const Eigen::Matrix<std::int64_t, D, 1> block = cell.unaryExpr([](std::int64_t c) {
+    return c >> kBlockBits;  // floor division (C++20 shifts negative values arithmetically)
+  });
+  return (block_base(block, level) | inner(cell - kBlock * block)) & (start_.size() - 2);
 }
 
 template <int D>
 template <class Fn>
 void SpatialHash<D>::for_each_candidate(const Vec& centre, double radius, Fn&& fn) const {
   constexpr double kMaxCellsPerRadius = 4.0;
-  for (const int level : levels_present_) {
-    const double h = std::ldexp(base_cell_, level);
-    if (radius > kMaxCellsPerRadius * h) continue;
-    const Eigen::Matrix<std::int64_t, D, 1> lo =
-        ((centre.array() - radius) / h).floor().template cast<std::int64_t>();
-    const Eigen::Matrix<std::int64_t, D, 1> hi =
-        ((centre.array() + radius) / h).floor().template cast<std::int64_t>();
-    Eigen::Matrix<std::int64_t, D, 1> c = lo;
+  constexpr std::int64_t kBlock = std::int64_t{1} << kBlockBits;
+  using Cell = Eigen::Matrix<std::int64_t, D, 1>;
+  const std::uint64_t mask = start_.size() - 2;
+  // Visits every cell of the box lo..hi (inclusive), last axis slowest.
+  const auto each_cell = [](const Cell& lo, const Cell& hi, auto&& visit) {
+    Cell c = lo;
     while (true) {
-      const std::uint64_t s = slot(c, level);
-      for (std::uint32_t k = start_[s]; k < start_[s + 1]; ++k) {
-        if (item_levels_[k] == level) fn(static_cast<std::size_t>(items_[k]), item_points_[k]);
-      }
+      visit(c);
       int axis = 0;
       while (axis < D && ++c[axis] > hi[axis]) {
         c[axis] = lo[axis];
@@ -72,6 +93,25 @@ void SpatialHash<D>::for_each_candidate(const Vec& centre, double radius, Fn&& f
       }
       if (axis == D) break;
     }
+  };
+  for (const int level : levels_present_) {
+    const double h = std::ldexp(base_cell_, level);
+    if (radius > kMaxCellsPerRadius * h) continue;
+    const Cell lo = ((centre.array() - radius) / h).floor().template cast<std::int64_t>();
+    const Cell hi = ((centre.array() + radius) / h).floor().template cast<std::int64_t>();
+    const auto to_block = [](std::int64_t c) { return c >> kBlockBits; };
+    each_cell(lo.unaryExpr(to_block), hi.unaryExpr(to_block), [&](const Cell& block) {
+      const std::uint64_t base = block_base(block, level);
+      const Cell first = kBlock * block;
+      const Cell in_lo = (lo - first).cwiseMax(0);
+      const Cell in_hi = (hi - first).cwiseMin(kBlock - 1);
+      each_cell(in_lo, in_hi, [&](const Cell& offset) {
+        const std::uint64_t s = (base | inner(offset)) & mask;
+        for (std::uint32_t k = start_[s]; k < start_[s + 1]; ++k) {
+          if (item_levels_[k] == level) fn(static_cast<std::size_t>(items_[k]), item_points_[k]);
+        }
+      });
+    });
   }
 }
 
