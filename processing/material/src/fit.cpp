@@ -12,6 +12,7 @@
 
 #include <Eigen/Cholesky>
 #include <Eigen/SparseCore>
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <memory>
@@ -22,6 +23,7 @@
 
 namespace hc::material {
 namespace {
+
 
 using detail::error_stats;
 using detail::Reparam;
@@ -390,6 +392,8 @@ Status fit_example(ExampleProblem* problem, const std::vector<LambdaAlpha>& init
     }
     lm.reg.resize(rows, 2 * t);
     lm.reg.setFromTriplets(trip.begin(), trip.end());
+    lm.reg_normal_product = detail::umbrella_normal_product(
+        laplacian, options.regularization, std::max(options.poisson_prior, 0.0));
     HC_RETURN_IF_ERROR(detail::run_lm(lm, detail::lm_settings(options), &q, s));
   }
   *params = params_of(rp, q);

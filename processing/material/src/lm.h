@@ -73,9 +73,18 @@ struct LmProblem {
   double product_flops = 0;
   Eigen::SparseMatrix<double> reg;  // R (rows × n) already multiplied by sqrt(γ); may be 0×0
   Eigen::VectorXd reg_target;       // b: the regulariser is ‖R q − b‖² (empty: b = 0)
+  // Optional: *out = RᵀR v by a cheaper route than R's entries (the matrix-free path's CG applies
+  // it once per iteration). Must equal reg.transpose() * (reg * v).
+  std::function<void(const Eigen::VectorXd& v, Eigen::VectorXd* out)> reg_normal_product;
   ProgressReporter* progress = nullptr;  // one unit per LM iteration
   std::string progress_task = "LM iterations";
 };
+
+// RᵀR v for fit_example's regulariser R = [√γ (L ⊗ I₂); √prior P] (P picks each element's second
+// parameter) from the Laplacian's neighbour lists, for LmProblem::reg_normal_product; empty when
+// L is not an umbrella Laplacian (tet_umbrella_laplacian: L_ii its degree, L_ij = −1).
+std::function<void(const Eigen::VectorXd&, Eigen::VectorXd*)> umbrella_normal_product(
+    const Eigen::SparseMatrix<double>& laplacian, double gamma, double prior);
 
 struct LmSettings {
   int max_iterations = 40;

@@ -13,6 +13,7 @@
 #include <vector>
 
 #include "../../../processing/material/src/lm.h"
+#include "processing/material/fit.h"
 
 namespace hc::material::detail {
 namespace {
@@ -115,6 +116,49 @@ TEST(LmMatrixFree, WholeRegulariserPreconditionerReachesTheMinimiserInFewCgItera
   EXPECT_LE((blocks - exact).norm(), 1e-7 * exact.norm());
   // The squared path Laplacian on 200 blocks has condition ~1e8: block-Jacobi leaves it to CG.
   EXPECT_LT(5 * sw.cg_iterations, sb.cg_iterations);
+}
+
+// umbrella_normal_product (fit_example's regulariser, applied from the Laplacian's neighbour
+// lists) against RᵀR v with R assembled from its entries as fit_example assembles it, on the
+// umbrella Laplacian of a tet mesh; and refused for a Laplacian with other weights.
+TEST(LmMatrixFree, UmbrellaNormalProductIsRTransposeR) {
+  // Five tets around the edge (0, 1) of a ring: each shares a vertex with every other.
+  TetMesh mesh;
+  mesh.nodes.resize(7, 3);
+  mesh.nodes << 0, 0, -1, 0, 0, 1, 1, 0, 0, 0.3, 1, 0, -0.8, 0.6, 0, -0.8, -0.6, 0, 0.3, -1, 0;
+  mesh.tets.resize(5, 4);
+  for (int k = 0; k < 5; ++k) mesh.tets.row(k) << 0, 1, 2 + k, 2 + (k + 1) % 5;
+  const Eigen::SparseMatrix<double> l = tet_umbrella_laplacian(mesh, TetAdjacency::kVertex);
+  const Eigen::Index t = l.rows();
+  const double gamma = 0.7, prior = 0.2;
+  std::vector<Eigen::Triplet<double>> trip;
+  for (Eigen::Index k = 0; k < l.outerSize(); ++k)
+    for (Eigen::SparseMatrix<double>::InnerIterator it(l, k); it; ++it)
+      for (int c = 0; c < 2; ++c)
+        trip.emplace_back(static_cast<int>(2 * it.row() + c), static_cast<int>(2 * it.col() + c),
+                          std::sqrt(gamma) * it.value());
+  for (Eigen::Index e = 0; e < t; ++e)
+    trip.emplace_back(static_cast<int>(2 * t + e), static_cast<int>(2 * e + 1), std::sqrt(prior));
+  Eigen::SparseMatrix<double> r(3 * t, 2 * t);
+  r.setFromTriplets(trip.begin(), trip.end());
+  const auto product = umbrella_normal_product(l, gamma, prior);
+  ASSERT_TRUE(product);
+  const Eigen::VectorXd v = Eigen::VectorXd::LinSpaced(2 * t, -1.0, 2.0).array().sin();
+  Eigen::VectorXd out;
+  product(v, &out);
+  const Eigen::VectorXd expected = r.transpose() * (r * v);
+  EXPECT_LE((out - expected).norm(), 1e-14 * expected.norm()) << out.transpose() << "\n"
+                                                               << expected.transpose();
+  // Without γ, only the prior.
+  const auto prior_only = umbrella_normal_product(l, 0.0, prior);
+  prior_only(v, &out);
+  for (Eigen::Index e = 0; e < t; ++e) {
+    EXPECT_EQ(out(2 * e), 0.0);
+    EXPECT_DOUBLE_EQ(out(2 * e + 1), prior * v(2 * e + 1));
+  }
+  Eigen::SparseMatrix<double> weighted = l;
+  weighted.coeffRef(0, 1) = -0.5;
+  EXPECT_FALSE(umbrella_normal_product(weighted, gamma, prior));
 }
 
 }  // namespace
