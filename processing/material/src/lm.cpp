@@ -241,12 +241,13 @@ class MatrixFreeLinearization final : public Linearization {
   std::function<Eigen::VectorXd(const Eigen::VectorXd&)> block_jacobi(double mu) const {
     const Eigen::Index n = g_.size();
     const Eigen::Index blocks = n / block_;
-    auto inv = std::make_shared<std::vector<Eigen::MatrixXd>>(static_cast<std::size_t>(blocks));
+    // The inverses stacked (n × block), applied without a temporary per block.
+    auto inv = std::make_shared<Eigen::MatrixXd>(n, block_);
     for (Eigen::Index e = 0; e < blocks; ++e) {
       Eigen::MatrixXd m = jtj_blocks_.middleRows(e * block_, block_);
       for (int a = 0; a < block_; ++a) m(a, a) += mu * diag_(e * block_ + a);
       Eigen::LLT<Eigen::MatrixXd> llt(m);
-      (*inv)[static_cast<std::size_t>(e)] =
+      inv->middleRows(e * block_, block_) =
           llt.info() == Eigen::Success
               ? Eigen::MatrixXd(llt.solve(Eigen::MatrixXd::Identity(block_, block_)))
               : Eigen::MatrixXd(m.diagonal().cwiseMax(1e-300).cwiseInverse().asDiagonal());
@@ -255,8 +256,8 @@ class MatrixFreeLinearization final : public Linearization {
     return [inv, blocks, block, n](const Eigen::VectorXd& v) {
       Eigen::VectorXd out(n);
       for (Eigen::Index e = 0; e < blocks; ++e)
-        out.segment(e * block, block) =
-            (*inv)[static_cast<std::size_t>(e)] * v.segment(e * block, block);
+        for (int a = 0; a < block; ++a)
+          out(e * block + a) = inv->row(e * block + a).dot(v.segment(e * block, block));
       return out;
     };
   }
