@@ -41,7 +41,8 @@ SpatialHash<D>::SpatialHash(std::span<const Vec> points, std::span<const int> le
 
 // Blocks of 4^D cells take consecutive slots (Morton order inside a block) and the blocks are
 // hashed, so the cells a query visits lie in a few runs of the table rather than one cache miss
-// each, the buckets' items follow in the same order, and a query hashes once per block.
+// each, the buckets' items follow in the same order, and a query hashes once per block
+// (bench_abstraction: 100k samples eliminated from 1.1M in 0.67 -> 0.50 s; the same samples).
 template <int D>
 std::uint64_t SpatialHash<D>::block_base(const Eigen::Matrix<std::int64_t, D, 1>& block,
                                          int level) {
