@@ -24,7 +24,6 @@
 namespace hc::material {
 namespace {
 
-
 using detail::error_stats;
 using detail::Reparam;
 using detail::sigmoid;

@@ -353,6 +353,7 @@ class UmbrellaNormalProduct {
   std::vector<double> degree_;
   std::vector<int> start_, neighbours_;
 };
+
 }  // namespace
 
 std::function<void(const Eigen::VectorXd&, Eigen::VectorXd*)> umbrella_normal_product(
