@@ -122,14 +122,19 @@ TEST(LmMatrixFree, WholeRegulariserPreconditionerReachesTheMinimiserInFewCgItera
 // lists) against RᵀR v with R assembled from its entries as fit_example assembles it, on the
 // umbrella Laplacian of a tet mesh; and refused for a Laplacian with other weights.
 TEST(LmMatrixFree, UmbrellaNormalProductIsRTransposeR) {
-  // Five tets around the edge (0, 1) of a ring: each shares a vertex with every other.
+  // A strip of eight tets (k, k + 1, k + 2, k + 3) over nodes on a helix: tet k shares a vertex
+  // with tets k - 3 .. k + 3, so the neighbour lists differ in length (3 at the ends, 6 inside) and
+  // no two are the same.
   TetMesh mesh;
-  mesh.nodes.resize(7, 3);
-  mesh.nodes << 0, 0, -1, 0, 0, 1, 1, 0, 0, 0.3, 1, 0, -0.8, 0.6, 0, -0.8, -0.6, 0, 0.3, -1, 0;
-  mesh.tets.resize(5, 4);
-  for (int k = 0; k < 5; ++k) mesh.tets.row(k) << 0, 1, 2 + k, 2 + (k + 1) % 5;
+  constexpr int kTets = 8;
+  mesh.nodes.resize(kTets + 3, 3);
+  for (int i = 0; i < kTets + 3; ++i) mesh.nodes.row(i) << std::cos(2.1 * i), std::sin(2.1 * i), 0.3 * i;
+  mesh.tets.resize(kTets, 4);
+  for (int k = 0; k < kTets; ++k) mesh.tets.row(k) << k, k + 1, k + 2, k + 3;
   const Eigen::SparseMatrix<double> l = tet_umbrella_laplacian(mesh, TetAdjacency::kVertex);
   const Eigen::Index t = l.rows();
+  ASSERT_EQ(l.coeff(0, 0), 3.0);
+  ASSERT_EQ(l.coeff(4, 4), 6.0);
   const double gamma = 0.7, prior = 0.2;
   std::vector<Eigen::Triplet<double>> trip;
   for (Eigen::Index k = 0; k < l.outerSize(); ++k)
@@ -157,7 +162,7 @@ TEST(LmMatrixFree, UmbrellaNormalProductIsRTransposeR) {
     EXPECT_DOUBLE_EQ(out(2 * e + 1), prior * v(2 * e + 1));
   }
   Eigen::SparseMatrix<double> weighted = l;
-  weighted.coeffRef(0, 1) = -0.5;
+  weighted.coeffRef(2, 4) = -0.5;
   EXPECT_FALSE(umbrella_normal_product(weighted, gamma, prior));
 }
 
