@@ -49,24 +49,20 @@ TEST(SparseCholesky, MatchesDenseLltOneAndManyRightHandSides) {
   EXPECT_LT((xm - dense.llt().solve(bm)).norm(), 1e-12 * xm.norm());
 }
 
-// Orderings computed on the graph of 3-row blocks (block_size) or by AMD alone (amd_only) are
-// other permutations of the same factorisation: the same solution as Eigen's own sparse LDLT. The
-// matrix: a 3-D grid Laplacian with 3 rows per node sharing its pattern, as an FEM's coordinates
-// do. The default tries AMD, METIS and nested dissection and keeps the fewest flops
-// (sparse_cholesky.cpp); on this 16³ grid a nested dissection wins, so AMD alone costs more
-// (measured 1.61e9 against 1.27e9 flops; the block ordering 0.84e9).
-TEST(SparseCholesky, BlockAndAmdOrderingsSolveTheSameSystem) {
-  constexpr int kSide = 16, kRows = 3 * kSide * kSide * kSide;
-  const auto node = [](int x, int y, int z) { return (z * kSide + y) * kSide + x; };
+// The upper triangle of a side³ grid Laplacian with 3 rows per node sharing its pattern, as an
+// FEM's coordinates do, plus `shift` on the diagonal.
+SparseMatrix grid_laplacian(int side, double shift = 1.0) {
+  const int rows = 3 * side * side * side;
+  const auto node = [side](int x, int y, int z) { return (z * side + y) * side + x; };
   std::vector<Eigen::Triplet<double>> t;
-  Eigen::VectorXd diagonal = Eigen::VectorXd::Constant(kRows, 1.0);
-  for (int z = 0; z < kSide; ++z)
-    for (int y = 0; y < kSide; ++y)
-      for (int x = 0; x < kSide; ++x) {
+  Eigen::VectorXd diagonal = Eigen::VectorXd::Constant(rows, shift);
+  for (int z = 0; z < side; ++z)
+    for (int y = 0; y < side; ++y)
+      for (int x = 0; x < side; ++x) {
         const int i = node(x, y, z);
         const int nbrs[3][3] = {{x + 1, y, z}, {x, y + 1, z}, {x, y, z + 1}};
         for (const auto& q : nbrs) {
-          if (q[0] >= kSide || q[1] >= kSide || q[2] >= kSide) continue;
+          if (q[0] >= side || q[1] >= side || q[2] >= side) continue;
           const int j = node(q[0], q[1], q[2]);
           for (int c = 0; c < 3; ++c)
             for (int d = 0; d < 3; ++d) {
@@ -76,10 +72,22 @@ TEST(SparseCholesky, BlockAndAmdOrderingsSolveTheSameSystem) {
             }
         }
       }
-  for (int i = 0; i < kRows; ++i) t.emplace_back(i, i, diagonal(i));  // diagonally dominant
-  SparseMatrix upper(kRows, kRows);
+  for (int i = 0; i < rows; ++i) t.emplace_back(i, i, diagonal(i));  // diagonally dominant
+  SparseMatrix upper(rows, rows);
   upper.setFromTriplets(t.begin(), t.end());
   upper.makeCompressed();
+  return upper;
+}
+
+// Orderings computed on the graph of 3-row blocks (block_size) or by AMD alone (amd_only) are
+// other permutations of the same factorisation: the same solution as Eigen's own sparse LDLT. The
+// matrix: a 3-D grid Laplacian with 3 rows per node sharing its pattern, as an FEM's coordinates
+// do. The default tries AMD, METIS and nested dissection and keeps the fewest flops
+// (sparse_cholesky.cpp); on this 16³ grid a nested dissection wins, so AMD alone costs more
+// (measured 1.61e9 against 1.27e9 flops; the block ordering 0.84e9).
+TEST(SparseCholesky, BlockAndAmdOrderingsSolveTheSameSystem) {
+  constexpr int kRows = 3 * 16 * 16 * 16;
+  const SparseMatrix upper = grid_laplacian(16);
   const Eigen::VectorXd b = Eigen::VectorXd::LinSpaced(kRows, -1.0, 2.0);
   const Eigen::SparseMatrix<double> full = upper.selfadjointView<Eigen::Upper>();
   const Eigen::VectorXd expected = Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>>(full).solve(b);
@@ -97,6 +105,56 @@ TEST(SparseCholesky, BlockAndAmdOrderingsSolveTheSameSystem) {
       EXPECT_GT(chol.summary().flops, default_flops);
     }
   }
+}
+
+// The single-precision solve against CHOLMOD's double one on a supernodal factor (the 14³ grid:
+// supernodes from one column to dense blocks of thousands of entries, so both the Eigen and the
+// OpenBLAS paths run), for one and many right-hand sides, and after a refactorisation with other
+// values (the float copy must follow). Its error is float rounding: above 1e-9 (so it is the float
+// path) and below 1e-5 (float's 6e-8 times this matrix's modest condition number).
+TEST(SparseCholesky, SinglePrecisionSolveMatchesTheDoubleOne) {
+  for (const double shift : {1.0, 0.01}) {
+    const SparseMatrix a = grid_laplacian(14, shift);
+    SparseCholesky chol(SparseCholesky::Options{.force_supernodal = true, .block_size = 3});
+    ASSERT_TRUE(chol.compute(a).ok());
+    ASSERT_TRUE(chol.summary().supernodal);
+    Eigen::MatrixXd b = Eigen::MatrixXd::Random(a.rows(), 4);
+    Eigen::MatrixXd exact, single;
+    ASSERT_TRUE(chol.solve(b, &exact).ok());
+    ASSERT_TRUE(chol.solve_single_precision(b, &single).ok());
+    for (Eigen::Index c = 0; c < b.cols(); ++c) {
+      const double err = (single.col(c) - exact.col(c)).norm() / exact.col(c).norm();
+      EXPECT_LT(err, 1e-5) << "shift " << shift << " column " << c;
+      EXPECT_GT(err, 1e-9) << "shift " << shift << " column " << c;
+      Eigen::VectorXd one;
+      ASSERT_TRUE(chol.solve_single_precision(Eigen::VectorXd(b.col(c)), &one).ok());
+      EXPECT_LT((one - exact.col(c)).norm(), 1e-5 * exact.col(c).norm());
+    }
+  }
+  // Refactorised with the diagonal doubled: the answer of the new values, not the copy's.
+  SparseMatrix a = grid_laplacian(14);
+  SparseCholesky chol(SparseCholesky::Options{.force_supernodal = true});
+  ASSERT_TRUE(chol.compute(a).ok());
+  const Eigen::VectorXd b = Eigen::VectorXd::LinSpaced(a.rows(), -1.0, 2.0);
+  Eigen::VectorXd x;
+  ASSERT_TRUE(chol.solve_single_precision(b, &x).ok());
+  for (Eigen::Index c = 0; c < a.cols(); ++c) a.coeffRef(c, c) *= 2;
+  ASSERT_TRUE(chol.factorize(a).ok());
+  Eigen::VectorXd exact, single;
+  ASSERT_TRUE(chol.solve(b, &exact).ok());
+  ASSERT_TRUE(chol.solve_single_precision(b, &single).ok());
+  EXPECT_LT((single - exact).norm(), 1e-5 * exact.norm());
+  EXPECT_GT((x - exact).norm(), 1e-2 * exact.norm());
+  // A simplicial factor is solved by the double solve, and a misfit right-hand side refused.
+  Eigen::MatrixXd dense;
+  SparseCholesky simplicial;
+  ASSERT_TRUE(simplicial.compute(random_spd(60, 7, &dense)).ok());
+  ASSERT_FALSE(simplicial.summary().supernodal);
+  const Eigen::VectorXd b60 = Eigen::VectorXd::LinSpaced(60, -1.0, 2.0);
+  ASSERT_TRUE(simplicial.solve(b60, &exact).ok());
+  ASSERT_TRUE(simplicial.solve_single_precision(b60, &single).ok());
+  EXPECT_EQ(single, exact);
+  EXPECT_EQ(chol.solve_single_precision(b60, &single).code(), StatusCode::kInvalidArgument);
 }
 
 TEST(SparseCholesky, NumericRefactorisationReusesTheAnalysis) {

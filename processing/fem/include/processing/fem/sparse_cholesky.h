@@ -72,6 +72,12 @@ class SparseCholesky {
   Status solve(const Eigen::VectorXd& b, Eigen::VectorXd* x) const;
   // X = A^{-1} B for many right-hand sides at once (B is rows() by k, column-major).
   Status solve(const Eigen::MatrixXd& b, Eigen::MatrixXd* x) const;
+  // x ≈ A^{-1} b through a single-precision copy of the factor, made at the first call after each
+  // factorisation: half the memory a solve reads (the solves of a large factor are bound by it),
+  // at a relative error of about 1e-7 times A's condition number. For preconditioners, whose
+  // iterations correct that error; a simplicial factor is solved by solve().
+  Status solve_single_precision(const Eigen::VectorXd& b, Eigen::VectorXd* x) const;
+  Status solve_single_precision(const Eigen::MatrixXd& b, Eigen::MatrixXd* x) const;
 
   bool analyzed() const;
   bool factorized() const;
