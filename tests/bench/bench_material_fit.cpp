@@ -83,6 +83,15 @@ void BM_FitScaling(benchmark::State& state) {
     state.counters["eval_rel"] = ev->error_rel_max_disp;
     state.counters["joint_matrix_free"] = summary.joint.matrix_free ? 1 : 0;
     state.counters["joint_cg"] = static_cast<double>(summary.joint.cg_iterations);
+    double lm = 0, cg = 0, matrix_free = 0;
+    for (const material::ParameterFitSummary& e : summary.examples) {
+      lm += e.iterations;
+      cg += static_cast<double>(e.cg_iterations);
+      matrix_free += e.matrix_free ? 1 : 0;
+    }
+    state.counters["lm_per_example"] = lm / n;
+    state.counters["cg_per_example"] = cg / n;
+    state.counters["matrix_free_examples"] = matrix_free;
   }
 }
 BENCHMARK(BM_FitScaling)
