@@ -138,6 +138,18 @@ class MatrixFreeLinearization final : public Linearization {
     l->diag_.resize(n);
     for (Eigen::Index i = 0; i < n; ++i) l->diag_(i) = l->jtj_blocks_(i, i % block);
     floor_diagonal(&l->diag_);
+    const double budget = kSavedProducts * 2 * product_flops;
+    const auto flops = [n](double entries) { return entries * entries / static_cast<double>(n); };
+    if (!preconditioner->whole_reg && rtr.rows() > 0) {
+      // nnz(M)² / n bounds the factor's flops from below (M's upper triangle: the blocks, and
+      // RᵀR's entries outside them), counted before M is built: one example's fit at 3,000 tets
+      // built M's 0.70M entries only to find them past the budget.
+      double entries = static_cast<double>(blocks * block * (block + 1) / 2);
+      for (Eigen::Index c = 0; c < rtr.outerSize(); ++c)
+        for (Eigen::SparseMatrix<double>::InnerIterator it(rtr, c); it; ++it)
+          if (it.row() < it.col() && it.row() / block != it.col() / block) entries += 1;
+      if (flops(entries) > budget) preconditioner->whole_reg = false;
+    }
     if (preconditioner->whole_reg.value_or(true) && rtr.rows() > 0) {
       // M's upper triangle: the blocks, and RᵀR's entries outside them.
       std::vector<Eigen::Triplet<double, int>> trip;
@@ -153,18 +165,13 @@ class MatrixFreeLinearization final : public Linearization {
       l->whole_.setFromTriplets(trip.begin(), trip.end());
       l->whole_.makeCompressed();
       if (!preconditioner->whole_reg) {
-        const double budget = kSavedProducts * 2 * product_flops;
-        const auto flops = [n](double entries) { return entries * entries / static_cast<double>(n); };
-        // nnz(M)² / n bounds the factor's flops from below: no analysis past the budget. Then
-        // AMD's fill, an upper bound of the best ordering's (which is seldom better by more than
-        // 2x in entries here): only between the two is the full analysis (AMD, METIS and nested
-        // dissection, 2 s on the 19,992 parameters of a 10,000-tet example, once per example) run.
-        bool whole = flops(static_cast<double>(l->whole_.nonZeros())) <= budget;
-        if (whole) {
-          fem::SparseCholesky amd(fem::SparseCholesky::Options{.amd_only = true});
-          HC_RETURN_IF_ERROR(amd.analyze(l->whole_));
-          whole = flops(amd.summary().nnz_factor / kBestOrderingGain) <= budget;
-        }
+        // Within the bound above, AMD's fill, an upper bound of the best ordering's (which is
+        // seldom better by more than 2x in entries here): only between the two is the full
+        // analysis (AMD, METIS and nested dissection, 2 s on the 19,992 parameters of a
+        // 10,000-tet example, once per example) run.
+        fem::SparseCholesky amd(fem::SparseCholesky::Options{.amd_only = true});
+        HC_RETURN_IF_ERROR(amd.analyze(l->whole_));
+        bool whole = flops(amd.summary().nnz_factor / kBestOrderingGain) <= budget;
         if (whole) {
           HC_RETURN_IF_ERROR(preconditioner->cholesky.analyze(l->whole_));
           whole = flops(preconditioner->cholesky.summary().nnz_factor) <= budget;
