@@ -314,13 +314,27 @@ Status SparseCholesky::solve_single_precision(const Eigen::MatrixXd& b, Eigen::M
     t.resize(static_cast<std::size_t>(below) * static_cast<std::size_t>(k));
     return Eigen::Map<MatrixF>(t.data(), below, k);
   };
-  for (Eigen::Index sn = 0; sn < nsuper; ++sn) {
+  struct Supernode {
+    int ncol, nrow, below;
+    const float* l;   // its block, nrow × ncol
+    float* own;       // its columns' rows of Y
+    const int* rows;  // the rows below its own
+    bool large;
+  };
+  const auto supernode = [&](Eigen::Index sn) {
     const int k1 = super[sn], ncol = super[sn + 1] - k1, nrow = pi[sn + 1] - pi[sn];
-    const int below = nrow - ncol;
-    const float* l = s.lx.data() + px[sn];
+    return Supernode{ncol,
+                     nrow,
+                     nrow - ncol,
+                     s.lx.data() + px[sn],
+                     y.data() + k1,
+                     rows + pi[sn] + ncol,
+                     static_cast<long>(nrow) * ncol >= kBlasEntries};
+  };
+  for (Eigen::Index sn = 0; sn < nsuper; ++sn) {
+    const auto [ncol, nrow, below, l, y_own, r, large] = supernode(sn);
     const Eigen::Map<const MatrixF> block(l, nrow, ncol);
-    Strided own(y.data() + k1, ncol, k, Eigen::OuterStride<>(n));
-    const bool large = static_cast<long>(nrow) * ncol >= kBlasEntries;
+    Strided own(y_own, ncol, k, Eigen::OuterStride<>(n));
     if (!large) {
       block.topRows(ncol).triangularView<Eigen::Lower>().solveInPlace(own);
     } else if (k == 1) {
@@ -338,22 +352,17 @@ Status SparseCholesky::solve_single_precision(const Eigen::MatrixXd& b, Eigen::M
       sgemm_("N", "N", &below, &k, &ncol, &unit, l + ncol, &nrow, own.data(), &n, &zero, tb.data(),
              &below);
     }
-    const int* r = rows + pi[sn] + ncol;
     for (int c = 0; c < k; ++c) {
       float* yc = y.data() + static_cast<std::size_t>(c) * n;
       for (int i = 0; i < below; ++i) yc[r[i]] -= tb(i, c);
     }
   }
   for (Eigen::Index sn = nsuper - 1; sn >= 0; --sn) {
-    const int k1 = super[sn], ncol = super[sn + 1] - k1, nrow = pi[sn + 1] - pi[sn];
-    const int below = nrow - ncol;
-    const float* l = s.lx.data() + px[sn];
+    const auto [ncol, nrow, below, l, y_own, r, large] = supernode(sn);
     const Eigen::Map<const MatrixF> block(l, nrow, ncol);
-    Strided own(y.data() + k1, ncol, k, Eigen::OuterStride<>(n));
-    const bool large = static_cast<long>(nrow) * ncol >= kBlasEntries;
+    Strided own(y_own, ncol, k, Eigen::OuterStride<>(n));
     if (below > 0) {
       Eigen::Map<MatrixF> tb = gathered(below);
-      const int* r = rows + pi[sn] + ncol;
       for (int c = 0; c < k; ++c) {
         const float* yc = y.data() + static_cast<std::size_t>(c) * n;
         for (int i = 0; i < below; ++i) tb(i, c) = yc[r[i]];
