@@ -274,7 +274,8 @@ Status SparseCholesky::solve(const Eigen::VectorXd& b, Eigen::VectorXd* x) const
 
 Status SparseCholesky::solve_single_precision(const Eigen::MatrixXd& b, Eigen::MatrixXd* x) const {
   const Impl& s = *impl_;
-  if (!s.factorized) return failed_precondition("sparse Cholesky: solve() without a factorisation");
+  if (!s.factorized)
+    return failed_precondition("sparse Cholesky: solve_single_precision() without a factorisation");
   const cholmod_factor* f = s.factor;
   if (!f->is_super || !f->is_ll) return solve(b, x);
   if (b.rows() != s.n) {

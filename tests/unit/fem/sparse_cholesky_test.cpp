@@ -155,6 +155,9 @@ TEST(SparseCholesky, SinglePrecisionSolveMatchesTheDoubleOne) {
   ASSERT_TRUE(simplicial.solve_single_precision(b60, &single).ok());
   EXPECT_EQ(single, exact);
   EXPECT_EQ(chol.solve_single_precision(b60, &single).code(), StatusCode::kInvalidArgument);
+  const Status unfactorised = SparseCholesky().solve_single_precision(b60, &single);
+  EXPECT_EQ(unfactorised.code(), StatusCode::kFailedPrecondition);
+  EXPECT_NE(unfactorised.message().find("solve_single_precision"), std::string::npos);
 }
 
 TEST(SparseCholesky, NumericRefactorisationReusesTheAnalysis) {
