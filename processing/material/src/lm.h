@@ -76,6 +76,11 @@ struct LmProblem {
   // Optional: *out = RᵀR v by a cheaper route than R's entries (the matrix-free path's CG applies
   // it once per iteration). Must equal reg.transpose() * (reg * v).
   std::function<void(const Eigen::VectorXd& v, Eigen::VectorXd* out)> reg_normal_product;
+  // Optional, for the matrix-free path's preconditioner where RᵀR is not factorised whole: a
+  // coarse basis C (elements × coarse functions, e.g. smoothed_aggregation_basis), applied to
+  // each of an element's `block` parameters, whose span holds the regulariser's smooth modes. The
+  // preconditioner adds the coarse correction P (Pᵀ M P)⁻¹ Pᵀ, P = C ⊗ I_block, to block-Jacobi.
+  Eigen::SparseMatrix<double> coarse_basis;
   ProgressReporter* progress = nullptr;  // one unit per LM iteration
   std::string progress_task = "LM iterations";
 };
@@ -85,6 +90,18 @@ struct LmProblem {
 // L is not an umbrella Laplacian (tet_umbrella_laplacian: L_ii its degree, L_ij = −1).
 std::function<void(const Eigen::VectorXd&, Eigen::VectorXd*)> umbrella_normal_product(
     const Eigen::SparseMatrix<double>& laplacian, double gamma, double prior);
+
+// The pattern of (I + |A|)^rings (values 1): the elements within `rings` steps of each other on
+// the graph of A's off-diagonal entries.
+Eigen::SparseMatrix<double> neighbourhood(const Eigen::SparseMatrix<double>& a, int rings);
+
+// Smoothed aggregation's coarse basis (Vaněk, Mandel and Brezina 1996) for LmProblem::coarse_basis:
+// aggregates over `graph` (an element and those of its neighbours not taken yet, where none is;
+// the rest join a neighbour's), their indicator functions smoothed by one Jacobi step of the
+// umbrella Laplacian L, (I − D⁻¹ L) with D its diagonal: each element's value becomes its
+// L-neighbours' mean. Columns: the aggregates.
+Eigen::SparseMatrix<double> smoothed_aggregation_basis(
+    const Eigen::SparseMatrix<double>& graph, const Eigen::SparseMatrix<double>& laplacian);
 
 struct LmSettings {
   int max_iterations = 40;
