@@ -86,7 +86,10 @@ class DenseLinearization final : public Linearization {
 // ordering and symbolic analysis, which cost more than a numeric factorisation): when the factor's
 // flops, estimated as nnz(L)² / n, stay below kSavedProducts normal products (each a J v and a
 // Jᵀ w). One example's fit (products of two small solves, a regulariser of wide vertex stencil:
-// 1.6M factor entries on 3,072 parameters) keeps block-Jacobi.
+// 1.6M factor entries on 3,072 parameters) gives a coarse space instead (LmProblem::coarse_basis):
+// block-Jacobi then handles the rough modes and an exact solve on the coarse space the smooth
+// ones, an additive two-level preconditioner, B + RᵀR + μ D projected on the coarse space and
+// factorised per LM trial.
 constexpr double kSavedProducts = 50;
 // How much fewer factor entries the best ordering is assumed to find than AMD, at most. The joint
 // fit's M: 1.8x at 3,000 tets, 3.2x at 10,000 (AMD 8.77e7, nested dissection 2.75e7 on 39,984
@@ -147,6 +150,11 @@ class MatrixFreeLinearization final : public Linearization {
     l->diag_.resize(n);
     for (Eigen::Index i = 0; i < n; ++i) l->diag_(i) = l->jtj_blocks_(i, i % block);
     floor_diagonal(&l->diag_);
+    // With a coarse space, RᵀR is not tried whole: for the per-example fits, whose products are
+    // two small FEM solves, M's factor was refused at every size measured (1,800-10,000 tets),
+    // and building M and its AMD count alone took 0.2 s per example at 10,000 tets (~13 % of the
+    // per-example phase, BM_FitScaling/9996/0).
+    if (preconditioner->coarse.rows() > 0) preconditioner->whole_reg = false;
     const double budget = kSavedProducts * 2 * product_flops;
     const auto flops = [n](double entries) { return entries * entries / static_cast<double>(n); };
     if (!preconditioner->whole_reg && rtr.rows() > 0) {

@@ -76,10 +76,11 @@ struct LmProblem {
   // Optional: *out = RᵀR v by a cheaper route than R's entries (the matrix-free path's CG applies
   // it once per iteration). Must equal reg.transpose() * (reg * v).
   std::function<void(const Eigen::VectorXd& v, Eigen::VectorXd* out)> reg_normal_product;
-  // Optional, for the matrix-free path's preconditioner where RᵀR is not factorised whole: a
-  // coarse basis C (elements × coarse functions, e.g. smoothed_aggregation_basis), applied to
-  // each of an element's `block` parameters, whose span holds the regulariser's smooth modes. The
-  // preconditioner adds the coarse correction P (Pᵀ M P)⁻¹ Pᵀ, P = C ⊗ I_block, to block-Jacobi.
+  // Optional, for the matrix-free path's preconditioner: a coarse basis C (elements × coarse
+  // functions, e.g. smoothed_aggregation_basis), applied to each of an element's `block`
+  // parameters, whose span holds the regulariser's smooth modes. The preconditioner is then
+  // block-Jacobi plus the coarse correction P (Pᵀ M P)⁻¹ Pᵀ, P = C ⊗ I_block, in place of
+  // trying RᵀR whole (lm.cpp).
   Eigen::SparseMatrix<double> coarse_basis;
   ProgressReporter* progress = nullptr;  // one unit per LM iteration
   std::string progress_task = "LM iterations";
