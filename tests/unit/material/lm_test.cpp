@@ -137,7 +137,8 @@ TEST(LmMatrixFree, CoarseCorrectionReachesTheMinimiserInFewerCgIterations) {
   const Eigen::SparseMatrix<double> graph = neighbourhood(l, 3);
   EXPECT_EQ(graph.nonZeros(), 7 * p.blocks - 2 * (3 + 2 + 1));  // |i - j| <= 3
   const Eigen::SparseMatrix<double> basis = smoothed_aggregation_basis(graph, l);
-  // Aggregates of 7 (a root and 3 on either side): 200 / 7 rounded up.
+  // A root and its 3 neighbours on either side: {0..3} (root 0), then {4..10} (root 7), {11..17},
+  // ..., {193..199}: 1 + 196 / 7 aggregates.
   EXPECT_EQ(basis.cols(), 29);
   // The smoothed indicators still sum to 1 everywhere: constants lie in the coarse space.
   const Eigen::VectorXd sum = basis * Eigen::VectorXd::Ones(basis.cols());
