@@ -87,14 +87,21 @@ void BM_FitScaling(benchmark::State& state) {
     state.counters["eval_rel"] = ev->error_rel_max_disp;
     state.counters["joint_matrix_free"] = summary.joint.matrix_free ? 1 : 0;
     state.counters["joint_cg"] = static_cast<double>(summary.joint.cg_iterations);
-    double lm = 0, cg = 0, matrix_free = 0;
+    double lm = 0, cg = 0, matrix_free = 0, factorizations = 0, factorize_s = 0, fit_s = 0;
     for (const material::ParameterFitSummary& e : summary.examples) {
       lm += e.iterations;
       cg += static_cast<double>(e.cg_iterations);
       matrix_free += e.matrix_free ? 1 : 0;
+      factorizations += e.fem_factorizations;
+      factorize_s += e.fem_factorize_s;
+      fit_s += e.time_s;
     }
     state.counters["lm_per_example"] = lm / n;
     state.counters["cg_per_example"] = cg / n;
+    // The per-example fits' time split: the FEM's factorisations and the rest (per ktet).
+    state.counters["factorizations_per_example"] = factorizations / n;
+    state.counters["factorize_share"] = fit_s > 0 ? factorize_s / fit_s : 0;
+    state.counters["rest_s_per_example_per_ktet"] = (fit_s - factorize_s) / n / ktets;
     state.counters["matrix_free_examples"] = matrix_free;
   }
 }

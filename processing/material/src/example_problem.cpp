@@ -215,6 +215,12 @@ Eigen::Index ExampleProblem::num_free_dofs() const { return impl_->fem.num_free_
 double ExampleProblem::factor_entries() const {
   return impl_->fem.cholesky().summary().nnz_factor;
 }
+int ExampleProblem::factorizations() const {
+  return impl_->fem.cholesky().summary().factorize_calls;
+}
+double ExampleProblem::factorize_time_s() const {
+  return impl_->fem.cholesky().summary().factorize_time_s;
+}
 
 Status ExampleProblem::simulate(const std::vector<LambdaAlpha>& p, Eigen::VectorXd* residual) {
   HC_RETURN_IF_ERROR(impl_->solve_at(p));

@@ -314,11 +314,73 @@ Result<LambdaAlpha> fit_homogeneous(std::vector<ExampleProblem*> problems,
   return result;
 }
 
+Result<std::shared_ptr<const ExampleFitSetup>> make_example_fit_setup(
+    const TetMesh& mesh, const ParameterFitOptions& options) {
+  HC_RETURN_IF_ERROR(options.validate());
+  auto setup = std::make_shared<ExampleFitSetup>();
+  const Eigen::Index t = mesh.num_tets();
+  setup->tets = t;
+  setup->regularization = options.regularization;
+  setup->poisson_prior = options.poisson_prior;
+  setup->initial_poisson = options.initial_poisson;
+  setup->max_poisson = options.max_poisson;
+  setup->laplacian = tet_umbrella_laplacian(mesh);
+  setup->face_laplacian = tet_umbrella_laplacian(mesh, TetAdjacency::kFace);
+  const Eigen::SparseMatrix<double>& laplacian = setup->laplacian;
+  // sqrt(γ) (L ⊗ I₂): the Laplacian acts on each channel of q separately.
+  std::vector<Eigen::Triplet<double>> trip;
+  const double sg = std::sqrt(options.regularization);
+  for (Eigen::Index k = 0; k < laplacian.outerSize(); ++k)
+    for (Eigen::SparseMatrix<double>::InnerIterator it(laplacian, k); it; ++it)
+      for (int c = 0; c < 2; ++c)
+        trip.emplace_back(static_cast<int>(2 * it.row() + c), static_cast<int>(2 * it.col() + c),
+                          sg * it.value());
+  Eigen::Index rows = options.regularization > 0 ? 2 * t : 0;
+  if (rows == 0) trip.clear();
+  if (options.poisson_prior > 0) {
+    const double w = std::sqrt(options.poisson_prior);
+    setup->reg_target = Eigen::VectorXd::Zero(rows + t);
+    const double q1 = Reparam{options.max_poisson}.to_q({1.0, options.initial_poisson})(1);
+    for (Eigen::Index e = 0; e < t; ++e) {
+      trip.emplace_back(static_cast<int>(rows + e), static_cast<int>(2 * e + 1), w);
+      setup->reg_target(rows + e) = w * q1;
+    }
+    rows += t;
+  }
+  setup->reg.resize(rows, 2 * t);
+  setup->reg.setFromTriplets(trip.begin(), trip.end());
+  setup->reg_normal_product = detail::umbrella_normal_product(laplacian, options.regularization,
+                                                              std::max(options.poisson_prior, 0.0));
+  return std::shared_ptr<const ExampleFitSetup>(std::move(setup));
+}
+
+bool ExampleFitSetup::made_for(const ParameterFitOptions& options) const {
+  return options.regularization == regularization && options.poisson_prior == poisson_prior &&
+         options.initial_poisson == initial_poisson && options.max_poisson == max_poisson;
+}
+
+std::shared_ptr<const detail::CoarseSpace> ExampleFitSetup::coarse_space() const {
+  // The preconditioner's coarse space: aggregates of about 17 tets (a tet and its face
+  // neighbours up to two faces away), smoothed by the regulariser's own Laplacian. Per example
+  // in bench_material_fit BM_FitScaling/<tets>/0, block-Jacobi alone took 435 / 852 CG
+  // iterations at 3,000 / 9,996 tets; with aggregates over three face rings (40 tets) 112 /
+  // 179, over two (17) 101 / 147; over L's vertex stencil (75 tets) 144 at 3,000. Made at the
+  // first matrix-free fit that asks (so never for dense ones), once for all that share this.
+  std::call_once(coarse_once_, [&] {
+    coarse_ = std::make_shared<const detail::CoarseSpace>(
+        detail::smoothed_aggregation_basis(detail::neighbourhood(face_laplacian, 2), laplacian),
+        reg, 2);
+  });
+  return coarse_;
+}
+
 Status fit_example(ExampleProblem* problem, const std::vector<LambdaAlpha>& initial,
                    const ParameterFitOptions& options, std::vector<LambdaAlpha>* params,
-                   ParameterFitSummary* summary) {
+                   ParameterFitSummary* summary, const ExampleFitSetup* setup) {
   HC_RETURN_IF_ERROR(options.validate());
   const auto t0 = Clock::now();
+  const int factorizations0 = problem->factorizations();
+  const double factorize_s0 = problem->factorize_time_s();
   const Eigen::Index t = problem->num_elements();
   if (initial.size() != 1 && static_cast<Eigen::Index>(initial.size()) != t)
     return invalid_argument(
@@ -338,7 +400,14 @@ Status fit_example(ExampleProblem* problem, const std::vector<LambdaAlpha>& init
                                          kStartPoissonHigh * rp.max_poisson);
     q.segment<2>(2 * e) = rp.to_q(start);
   }
-  const Eigen::SparseMatrix<double> laplacian = tet_umbrella_laplacian(problem->mesh());
+  std::shared_ptr<const ExampleFitSetup> own;
+  if (setup == nullptr) {
+    HC_ASSIGN_OR_RETURN(own, make_example_fit_setup(problem->mesh(), options));
+    setup = own.get();
+  } else if (setup->tets != t || !setup->made_for(options)) {
+    return invalid_argument("fit_example: the shared setup was made for another mesh or options");
+  }
+  const Eigen::SparseMatrix<double>& laplacian = setup->laplacian;
   ParameterFitSummary local;
   ParameterFitSummary* s = summary ? summary : &local;
   *s = ParameterFitSummary{};
@@ -369,45 +438,20 @@ Status fit_example(ExampleProblem* problem, const std::vector<LambdaAlpha>& init
       return std::unique_ptr<detail::JacobianOperator>(
           std::make_unique<ExampleOperator>(problem, rp, qq, scale));
     };
-    // sqrt(γ) (L ⊗ I₂): the Laplacian acts on each channel of q separately.
-    std::vector<Eigen::Triplet<double>> trip;
-    const double sg = std::sqrt(options.regularization);
-    for (Eigen::Index k = 0; k < laplacian.outerSize(); ++k)
-      for (Eigen::SparseMatrix<double>::InnerIterator it(laplacian, k); it; ++it)
-        for (int c = 0; c < 2; ++c)
-          trip.emplace_back(static_cast<int>(2 * it.row() + c), static_cast<int>(2 * it.col() + c),
-                            sg * it.value());
-    Eigen::Index rows = options.regularization > 0 ? 2 * t : 0;
-    if (rows == 0) trip.clear();
-    if (options.poisson_prior > 0) {
-      const double w = std::sqrt(options.poisson_prior);
-      lm.reg_target = Eigen::VectorXd::Zero(rows + t);
-      const double q1 = rp.to_q({1.0, options.initial_poisson})(1);
-      for (Eigen::Index e = 0; e < t; ++e) {
-        trip.emplace_back(static_cast<int>(rows + e), static_cast<int>(2 * e + 1), w);
-        lm.reg_target(rows + e) = w * q1;
-      }
-      rows += t;
-    }
-    lm.reg.resize(rows, 2 * t);
-    lm.reg.setFromTriplets(trip.begin(), trip.end());
-    lm.reg_normal_product = detail::umbrella_normal_product(
-        laplacian, options.regularization, std::max(options.poisson_prior, 0.0));
-    // The preconditioner's coarse space: aggregates of about 17 tets (a tet and its face
-    // neighbours up to two faces away), smoothed by the regulariser's own Laplacian. Per example
-    // in bench_material_fit BM_FitScaling/<tets>/0, block-Jacobi alone took 435 / 852 CG
-    // iterations at 3,000 / 9,996 tets; with aggregates over three face rings (40 tets) 112 /
-    // 179, over two (17) 101 / 147; over L's vertex stencil (75 tets) 144 at 3,000.
-    if (lm.matrix_free && options.regularization > 0)
-      lm.coarse_basis = detail::smoothed_aggregation_basis(
-          detail::neighbourhood(tet_umbrella_laplacian(problem->mesh(), TetAdjacency::kFace), 2),
-          laplacian);
+    lm.reg = setup->reg;
+    lm.reg_target = setup->reg_target;
+    if (setup->reg_normal_product)  // by reference: its neighbour lists are the mesh's size
+      lm.reg_normal_product = [f = &setup->reg_normal_product](
+                                  const Eigen::VectorXd& v, Eigen::VectorXd* out) { (*f)(v, out); };
+    if (lm.matrix_free && options.regularization > 0) lm.coarse = setup->coarse_space();
     HC_RETURN_IF_ERROR(detail::run_lm(lm, detail::lm_settings(options), &q, s));
   }
   *params = params_of(rp, q);
   Eigen::VectorXd r;
   HC_RETURN_IF_ERROR(problem->simulate(*params, &r));
   error_stats(r, &s->rms_error_m, &s->max_error_m);
+  s->fem_factorizations = problem->factorizations() - factorizations0;
+  s->fem_factorize_s = problem->factorize_time_s() - factorize_s0;
   s->time_s = std::chrono::duration<double>(Clock::now() - t0).count();
   return {};
 }

@@ -99,10 +99,10 @@ constexpr double kBestOrderingGain = 4;
 struct Preconditioner {
   fem::SparseCholesky cholesky;   // analysed for M's pattern when whole_reg holds true
   std::optional<bool> whole_reg;  // empty: not decided yet
-  // The coarse space P = LmProblem::coarse_basis ⊗ I_block (empty: none), Pᵀ RᵀR P, and the
-  // factor of the coarse matrix (analysed at its first use).
-  Eigen::SparseMatrix<double> coarse;
-  Eigen::SparseMatrix<double> coarse_reg;
+  // The coarse space (none: nullptr), its coarse matrix and that matrix's factor (analysed at its
+  // first use).
+  const CoarseSpace* coarse = nullptr;
+  fem::SparseMatrix coarse_upper;
   fem::SparseCholesky coarse_cholesky;
 };
 
@@ -111,10 +111,10 @@ class MatrixFreeLinearization final : public Linearization {
   static Result<std::unique_ptr<MatrixFreeLinearization>> create(
       std::unique_ptr<JacobianOperator> op, const Eigen::VectorXd& r,
       const Eigen::SparseMatrix<double>& reg, const Eigen::SparseMatrix<double>& rtr,
+      const Eigen::MatrixXd& reg_blocks,
       const std::function<void(const Eigen::VectorXd&, Eigen::VectorXd*)>& reg_normal_product,
-      const Eigen::VectorXd& reg_gradient, int block,
-      const LmSettings& settings, double product_flops, Preconditioner* preconditioner,
-      std::mt19937_64* rng, double g0_norm) {
+      const Eigen::VectorXd& reg_gradient, int block, const LmSettings& settings,
+      double product_flops, Preconditioner* preconditioner, std::mt19937_64* rng, double g0_norm) {
     auto l = std::unique_ptr<MatrixFreeLinearization>(new MatrixFreeLinearization());
     l->op_ = std::move(op);
     l->reg_ = &reg;
@@ -126,7 +126,7 @@ class MatrixFreeLinearization final : public Linearization {
     Eigen::MatrixXd jtr;
     HC_RETURN_IF_ERROR(l->op_->apply_transpose(r, &jtr));
     l->g_ = jtr.col(0);
-    if (rtr.rows() > 0) l->g_ += reg_gradient;
+    if (reg.rows() > 0) l->g_ += reg_gradient;
     const Eigen::Index n = l->g_.size();
     const int k = std::max(1, settings.sketch_size);
     std::normal_distribution<double> normal(0.0, 1.0 / std::sqrt(static_cast<double>(k)));
@@ -141,12 +141,8 @@ class MatrixFreeLinearization final : public Linearization {
       const auto ye = y.middleRows(e * block, block);
       l->jtj_blocks_.middleRows(e * block, block) = ye * ye.transpose();
     }
-    if (preconditioner->coarse.rows() > 0) l->b_blocks_ = l->jtj_blocks_;
-    if (rtr.rows() > 0)
-      for (Eigen::Index e = 0; e < blocks; ++e)
-        for (int a = 0; a < block; ++a)
-          for (int b = 0; b < block; ++b)
-            l->jtj_blocks_(e * block + a, b) += rtr.coeff(e * block + a, e * block + b);
+    if (preconditioner->coarse) l->b_blocks_ = l->jtj_blocks_;
+    if (reg.rows() > 0) l->jtj_blocks_ += reg_blocks;
     l->diag_.resize(n);
     for (Eigen::Index i = 0; i < n; ++i) l->diag_(i) = l->jtj_blocks_(i, i % block);
     floor_diagonal(&l->diag_);
@@ -154,7 +150,7 @@ class MatrixFreeLinearization final : public Linearization {
     // two small FEM solves, M's factor was refused at every size measured (1,800-10,000 tets),
     // and building M and its AMD count alone took 0.2 s per example at 10,000 tets (~13 % of the
     // per-example phase, BM_FitScaling/9996/0).
-    if (preconditioner->coarse.rows() > 0) preconditioner->whole_reg = false;
+    if (preconditioner->coarse) preconditioner->whole_reg = false;
     const double budget = kSavedProducts * 2 * product_flops;
     const auto flops = [n](double entries) { return entries * entries / static_cast<double>(n); };
     if (!preconditioner->whole_reg && rtr.rows() > 0) {
@@ -218,10 +214,10 @@ class MatrixFreeLinearization final : public Linearization {
       precondition = [&](const Eigen::VectorXd& v) -> Eigen::VectorXd {
         return preconditioner_->cholesky.solve(v, &solved).ok() ? solved : v;
       };
-    } else if (preconditioner_->coarse.rows() > 0 && factor_coarse(mu).ok()) {
+    } else if (preconditioner_->coarse && factor_coarse(mu).ok()) {
       // Additive two-level: block-Jacobi plus the coarse correction P (Pᵀ M P)⁻¹ Pᵀ.
       const auto smooth = block_jacobi(mu);
-      const Eigen::SparseMatrix<double>& p = preconditioner_->coarse;
+      const Eigen::SparseMatrix<double>& p = preconditioner_->coarse->p();
       precondition = [&, smooth](const Eigen::VectorXd& v) -> Eigen::VectorXd {
         Eigen::VectorXd z = smooth(v), y;
         if (preconditioner_->coarse_cholesky.solve(Eigen::VectorXd(p.transpose() * v), &y).ok())
@@ -237,7 +233,7 @@ class MatrixFreeLinearization final : public Linearization {
       Eigen::MatrixXd t;
       HC_RETURN_IF_ERROR(op_->apply_transpose(jv, &t));
       *out = t.col(0) + mu * diag_.cwiseProduct(v);
-      if (rtr_->rows() > 0) *out += regularizer_product(v);
+      if (reg_->rows() > 0) *out += regularizer_product(v);
       return {};
     };
     Eigen::VectorXd x = Eigen::VectorXd::Zero(n), res = -g_;
@@ -264,7 +260,7 @@ class MatrixFreeLinearization final : public Linearization {
     // The model's decrease −(2 gᵀδ + δᵀ (JᵀJ + RᵀR) δ), exact also for an inexact CG solution.
     HC_RETURN_IF_ERROR(op_->apply(x, &jv));
     double quad = jv.squaredNorm();
-    if (rtr_->rows() > 0) quad += x.dot(regularizer_product(x));
+    if (reg_->rows() > 0) quad += x.dot(regularizer_product(x));
     step->predicted = -(2 * g_.dot(x) + quad);
     return {};
   }
@@ -300,23 +296,10 @@ class MatrixFreeLinearization final : public Linearization {
   // blocks of JᵀJ. Its pattern is the same at every call (the blocks are stored whole), as the
   // analysis needs.
   Status factor_coarse(double mu) const {
-    const Eigen::Index n = g_.size();
-    std::vector<Eigen::Triplet<double, int>> trip;
-    trip.reserve(static_cast<std::size_t>(n * block_));
-    for (Eigen::Index i = 0; i < n; ++i) {
-      const Eigen::Index first = i - i % block_;
-      for (int c = 0; c < block_; ++c) {
-        double v = b_blocks_(i, c);
-        if (first + c == i) v += mu * diag_(i);
-        trip.emplace_back(static_cast<int>(i), static_cast<int>(first + c), v);
-      }
-    }
-    fem::SparseMatrix x(n, n);
-    x.setFromTriplets(trip.begin(), trip.end());
-    const Eigen::SparseMatrix<double>& p = preconditioner_->coarse;
-    const fem::SparseMatrix a =
-        preconditioner_->coarse_reg + Eigen::SparseMatrix<double>(p.transpose() * (x * p));
-    const fem::SparseMatrix upper = a.triangularView<Eigen::Upper>();
+    Eigen::MatrixXd x = b_blocks_;
+    for (Eigen::Index i = 0; i < x.rows(); ++i) x(i, i % block_) += mu * diag_(i);
+    fem::SparseMatrix& upper = preconditioner_->coarse_upper;
+    preconditioner_->coarse->assemble(x, &upper);
     fem::SparseCholesky& chol = preconditioner_->coarse_cholesky;
     if (!chol.analyzed()) HC_RETURN_IF_ERROR(chol.analyze(upper));
     return chol.factorize(upper);
@@ -339,7 +322,7 @@ class MatrixFreeLinearization final : public Linearization {
 
   std::unique_ptr<JacobianOperator> op_;
   const Eigen::SparseMatrix<double>* reg_ = nullptr;  // R
-  const Eigen::SparseMatrix<double>* rtr_ = nullptr;  // RᵀR
+  const Eigen::SparseMatrix<double>* rtr_ = nullptr;  // RᵀR (empty where not needed)
   const std::function<void(const Eigen::VectorXd&, Eigen::VectorXd*)>* normal_product_ = nullptr;
   int block_ = 1;
   Preconditioner* preconditioner_ = nullptr;
@@ -434,6 +417,84 @@ Eigen::SparseMatrix<double> neighbourhood(const Eigen::SparseMatrix<double>& a, 
   return out;
 }
 
+CoarseSpace::CoarseSpace(const Eigen::SparseMatrix<double>& basis,
+                         const Eigen::SparseMatrix<double>& reg, int block)
+    : b_(block) {
+  const int b = block;
+  std::vector<Eigen::Triplet<double>> trip;
+  trip.reserve(static_cast<std::size_t>(basis.nonZeros() * b));
+  for (Eigen::Index k = 0; k < basis.outerSize(); ++k)
+    for (Eigen::SparseMatrix<double>::InnerIterator it(basis, k); it; ++it)
+      for (int a = 0; a < b; ++a)
+        trip.emplace_back(static_cast<int>(it.row() * b + a), static_cast<int>(it.col() * b + a),
+                          it.value());
+  p_.resize(basis.rows() * b, basis.cols() * b);
+  p_.setFromTriplets(trip.begin(), trip.end());
+  const Eigen::SparseMatrix<double> rp = reg * p_;
+  const Eigen::SparseMatrix<double> coarse_reg = rp.transpose() * rp;
+  using RowMajor = Eigen::SparseMatrix<double, Eigen::RowMajor>;
+  const RowMajor by_element = basis;
+  const Eigen::Index m = basis.cols(), n = m * b;
+  // Block column k at a time (a symbolic sparse product): its block rows j <= k are the
+  // functions sharing an element with k and Pᵀ RᵀR P's blocks; column k b + c then holds rows
+  // j b .. j b + b - 1 of each j < k and k b .. k b + c (upper triangle).
+  std::vector<Eigen::Index> mark(static_cast<std::size_t>(m), -1);
+  std::vector<int> local(static_cast<std::size_t>(m), 0), block_rows;
+  std::vector<int> outer(static_cast<std::size_t>(n) + 1, 0), inner;
+  std::vector<double> reg_values;
+  const auto add_block_row = [&](Eigen::Index j, Eigen::Index k) {
+    if (mark[static_cast<std::size_t>(j)] == k) return;
+    mark[static_cast<std::size_t>(j)] = k;
+    block_rows.push_back(static_cast<int>(j));
+  };
+  for (Eigen::Index k = 0; k < m; ++k) {
+    block_rows.clear();
+    for (Eigen::SparseMatrix<double>::InnerIterator e(basis, k); e; ++e)
+      for (RowMajor::InnerIterator j(by_element, e.row()); j && j.col() <= k; ++j)
+        add_block_row(j.col(), k);
+    for (int c = 0; c < b; ++c)
+      for (Eigen::SparseMatrix<double>::InnerIterator it(coarse_reg, k * b + c); it; ++it)
+        if (it.row() / b <= k) add_block_row(it.row() / b, k);
+    std::sort(block_rows.begin(), block_rows.end());
+    for (std::size_t q = 0; q < block_rows.size(); ++q)
+      local[static_cast<std::size_t>(block_rows[q])] = b * static_cast<int>(q);
+    for (int c = 0; c < b; ++c) {
+      for (const int j : block_rows)
+        for (int a = 0; a < (j == k ? c + 1 : b); ++a) inner.push_back(j * b + a);
+      outer[static_cast<std::size_t>(k * b + c) + 1] = static_cast<int>(inner.size());
+    }
+    reg_values.resize(inner.size(), 0.0);
+    for (int c = 0; c < b; ++c)
+      for (Eigen::SparseMatrix<double>::InnerIterator it(coarse_reg, k * b + c); it; ++it)
+        if (it.row() <= k * b + c)
+          reg_values[static_cast<std::size_t>(outer[static_cast<std::size_t>(k * b + c)] +
+                                              local[static_cast<std::size_t>(it.row() / b)] +
+                                              it.row() % b)] += it.value();
+    for (Eigen::SparseMatrix<double>::InnerIterator e(basis, k); e; ++e)
+      for (RowMajor::InnerIterator j(by_element, e.row()); j && j.col() <= k; ++j)
+        terms_.push_back({static_cast<int>(e.row()), static_cast<int>(k),
+                          local[static_cast<std::size_t>(j.col())], j.col() == k,
+                          j.value() * e.value()});
+  }
+  upper_ = Eigen::Map<const fem::SparseMatrix>(n, n, static_cast<Eigen::Index>(inner.size()),
+                                               outer.data(), inner.data(), reg_values.data());
+  reg_values_ = Eigen::Map<const Eigen::VectorXd>(reg_values.data(),
+                                                  static_cast<Eigen::Index>(reg_values.size()));
+}
+
+void CoarseSpace::assemble(const Eigen::MatrixXd& x, fem::SparseMatrix* upper) const {
+  if (upper->nonZeros() != upper_.nonZeros()) *upper = upper_;
+  Eigen::Map<Eigen::VectorXd>(upper->valuePtr(), upper->nonZeros()) = reg_values_;
+  double* values = upper->valuePtr();
+  const int* outer = upper->outerIndexPtr();
+  for (const Term& t : terms_)
+    for (int c = 0; c < b_; ++c) {
+      double* column = values + outer[t.k * b_ + c] + t.offset;
+      for (int a = 0; a < (t.diagonal ? c + 1 : b_); ++a)
+        column[a] += t.weight * x(t.element * b_ + a, c);
+    }
+}
+
 Eigen::SparseMatrix<double> smoothed_aggregation_basis(
     const Eigen::SparseMatrix<double>& graph, const Eigen::SparseMatrix<double>& laplacian) {
   const Eigen::Index n = graph.cols();
@@ -520,8 +581,6 @@ Status run_lm(const LmProblem& problem, const LmSettings& settings, Eigen::Vecto
               ParameterFitSummary* summary) {
   const bool has_reg = problem.reg.rows() > 0;
   const Eigen::SparseMatrix<double>& reg = problem.reg;
-  Eigen::SparseMatrix<double> rtr;
-  if (has_reg) rtr = reg.transpose() * reg;
   const bool has_target = has_reg && problem.reg_target.size() == problem.reg.rows();
   const auto reg_residual = [&](const Eigen::VectorXd& v) -> Eigen::VectorXd {
     Eigen::VectorXd out = reg * v;
@@ -533,20 +592,21 @@ Status run_lm(const LmProblem& problem, const LmSettings& settings, Eigen::Vecto
   };
   std::mt19937_64 rng(settings.seed);
   Preconditioner preconditioner;
-  if (problem.matrix_free && has_reg && problem.coarse_basis.rows() * problem.block == reg.cols()) {
-    const int b = problem.block;
-    const Eigen::SparseMatrix<double>& basis = problem.coarse_basis;
-    std::vector<Eigen::Triplet<double>> trip;
-    trip.reserve(static_cast<std::size_t>(basis.nonZeros() * b));
-    for (Eigen::Index k = 0; k < basis.outerSize(); ++k)
-      for (Eigen::SparseMatrix<double>::InnerIterator it(basis, k); it; ++it)
-        for (int a = 0; a < b; ++a)
-          trip.emplace_back(static_cast<int>(it.row() * b + a), static_cast<int>(it.col() * b + a),
-                            it.value());
-    preconditioner.coarse.resize(reg.cols(), basis.cols() * b);
-    preconditioner.coarse.setFromTriplets(trip.begin(), trip.end());
-    const Eigen::SparseMatrix<double> rp = reg * preconditioner.coarse;
-    preconditioner.coarse_reg = rp.transpose() * rp;
+  if (problem.matrix_free && has_reg && problem.coarse && problem.coarse->p().rows() == reg.cols())
+    preconditioner.coarse = problem.coarse.get();
+  // RᵀR's diagonal blocks, the dot products of R's columns; RᵀR itself only where something reads
+  // it: the dense path, a product without the problem's own, and the choice of the whole-RᵀR
+  // preconditioner, which a coarse space skips (forming a vertex-stencil RᵀR took 15 % of the
+  // per-example fits at 10,000 tets).
+  const int block = problem.block;
+  Eigen::MatrixXd reg_blocks;
+  Eigen::SparseMatrix<double> rtr;
+  if (has_reg) {
+    reg_blocks.setZero(reg.cols(), block);
+    for (Eigen::Index i = 0; i < reg.cols(); ++i)
+      for (int c = 0; c < block; ++c) reg_blocks(i, c) = reg.col(i).dot(reg.col(i - i % block + c));
+    if (!problem.matrix_free || !problem.reg_normal_product || !preconditioner.coarse)
+      rtr = reg.transpose() * reg;
   }
   ProgressTask task(problem.progress, problem.progress_task,
                     static_cast<std::uint64_t>(settings.max_iterations));
@@ -570,13 +630,10 @@ Status run_lm(const LmProblem& problem, const LmSettings& settings, Eigen::Vecto
     std::unique_ptr<Linearization> lin;
     if (problem.matrix_free) {
       HC_ASSIGN_OR_RETURN(std::unique_ptr<JacobianOperator> op, problem.jacobian_operator(*q));
-      HC_ASSIGN_OR_RETURN(lin, MatrixFreeLinearization::create(std::move(op), r, reg, rtr,
-                                                               problem.reg_normal_product,
-                                                               reg_gradient,
-                                                               problem.block, settings,
-                                                               problem.product_flops,
-                                                               &preconditioner, &rng,
-                                                               g0_norm));
+      HC_ASSIGN_OR_RETURN(
+          lin, MatrixFreeLinearization::create(
+                   std::move(op), r, reg, rtr, reg_blocks, problem.reg_normal_product, reg_gradient,
+                   problem.block, settings, problem.product_flops, &preconditioner, &rng, g0_norm));
     } else {
       Eigen::MatrixXd j;
       HC_RETURN_IF_ERROR(problem.jacobian(*q, &j));

@@ -61,6 +61,9 @@ Result<Material> fit_heterogeneous(const Samples& samples, const HeterogeneousFi
           bytes / 1e9, options.joint.max_jacobian_bytes / 1e9));
   }
 
+  // The regulariser and the preconditioner's coarse space, the same for every example.
+  HC_ASSIGN_OR_RETURN(const std::shared_ptr<const ExampleFitSetup> setup,
+                      make_example_fit_setup(samples.mesh, options.parameters));
   std::vector<std::optional<ExampleProblem>> problems(n);
   std::vector<std::vector<LambdaAlpha>> params(n);
   std::vector<Eigen::Matrix<double, Eigen::Dynamic, 6>> strains(n);
@@ -84,7 +87,7 @@ Result<Material> fit_heterogeneous(const Samples& samples, const HeterogeneousFi
       Result<LambdaAlpha> uniform = fit_homogeneous({&problem}, options.parameters);
       if (!uniform.ok()) return uniform.status();
       HC_RETURN_IF_ERROR(
-          fit_example(&problem, {*uniform}, options.parameters, &params[i], &fits[i]));
+          fit_example(&problem, {*uniform}, options.parameters, &params[i], &fits[i], setup.get()));
       Eigen::VectorXd r;
       HC_RETURN_IF_ERROR(problem.simulate(params[i], &r));
       strains[i] = problem.strains();

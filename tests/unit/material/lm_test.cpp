@@ -85,7 +85,6 @@ class DenseOperator final : public JacobianOperator {
 ParameterFitSummary solve(const Problem& p, double product_flops, Eigen::VectorXd* q,
                           const Eigen::SparseMatrix<double>& coarse_basis = {}) {
   LmProblem lm;
-  lm.coarse_basis = coarse_basis;
   lm.residual = [&](const Eigen::VectorXd& v, Eigen::VectorXd* r) -> Status {
     *r = p.j * v - p.y;
     return {};
@@ -99,6 +98,8 @@ ParameterFitSummary solve(const Problem& p, double product_flops, Eigen::VectorX
   lm.block = 2;
   lm.product_flops = product_flops;
   lm.reg = p.reg;
+  if (coarse_basis.size() > 0)
+    lm.coarse = std::make_shared<const CoarseSpace>(coarse_basis, p.reg, 2);
   LmSettings settings;
   settings.max_iterations = 30;
   settings.function_tolerance = 1e-14;
@@ -151,6 +152,58 @@ TEST(LmMatrixFree, CoarseCorrectionReachesTheMinimiserInFewerCgIterations) {
   EXPECT_LE((blocks - exact).norm(), 1e-7 * exact.norm());
   // Measured: 555 against 1,583 CG iterations (8 LM iterations each).
   EXPECT_LT(2 * s2.cg_iterations, sb.cg_iterations);
+}
+
+// CoarseSpace's scatter against Eigen's sparse triple product Pᵀ (X + RᵀR) P, P = C ⊗ I_b, for
+// block sizes 1-3, a basis with overlapping supports and a regulariser wider than the basis (so
+// the pattern has blocks from RᵀR alone); assembled twice with other X on the same pattern.
+TEST(LmMatrixFree, CoarseSpaceAssemblesTheProjectedMatrix) {
+  const Problem problem;
+  const Eigen::SparseMatrix<double>& l = problem.laplacian;
+  const Eigen::Index t = l.rows();
+  const Eigen::SparseMatrix<double> basis = smoothed_aggregation_basis(neighbourhood(l, 2), l);
+  ASSERT_GT(basis.cols(), 10);
+  for (int b = 1; b <= 3; ++b) {
+    // R: the squared path Laplacian on every channel, plus a prior on the last.
+    std::vector<Eigen::Triplet<double>> trip;
+    const Eigen::SparseMatrix<double> l2 = l * l;
+    for (Eigen::Index k = 0; k < l2.outerSize(); ++k)
+      for (Eigen::SparseMatrix<double>::InnerIterator it(l2, k); it; ++it)
+        for (int c = 0; c < b; ++c)
+          trip.emplace_back(static_cast<int>(it.row() * b + c), static_cast<int>(it.col() * b + c),
+                            0.3 * it.value());
+    for (Eigen::Index e = 0; e < t; ++e)
+      trip.emplace_back(static_cast<int>(b * t + e), static_cast<int>(e * b + b - 1), 0.7);
+    Eigen::SparseMatrix<double> r((b + 1) * t, b * t);
+    r.setFromTriplets(trip.begin(), trip.end());
+    const CoarseSpace space(basis, r, b);
+    ASSERT_EQ(space.p().rows(), b * t);
+    ASSERT_EQ(space.p().cols(), b * basis.cols());
+    fem::SparseMatrix upper;
+    for (int round = 0; round < 2; ++round) {
+      Eigen::MatrixXd x(b * t, b);
+      std::vector<Eigen::Triplet<double>> xt;
+      for (Eigen::Index e = 0; e < t; ++e)
+        for (int i = 0; i < b; ++i)
+          for (int c = 0; c < b; ++c) {
+            const double v = std::sin(1.3 * static_cast<double>(e * b * b + i * b + c) + round) +
+                             (i == c ? 2.0 : 0.0);
+            x(e * b + i, c) = v;
+            xt.emplace_back(static_cast<int>(e * b + i), static_cast<int>(e * b + c), v);
+          }
+      Eigen::SparseMatrix<double> xs(b * t, b * t);
+      xs.setFromTriplets(xt.begin(), xt.end());
+      space.assemble(x, &upper);
+      const Eigen::MatrixXd expected =
+          Eigen::MatrixXd(Eigen::SparseMatrix<double>(
+                              space.p().transpose() *
+                              (xs + Eigen::SparseMatrix<double>(r.transpose() * r)) * space.p()))
+              .triangularView<Eigen::Upper>();
+      const Eigen::MatrixXd got = Eigen::MatrixXd(upper);
+      EXPECT_LE((got - expected).norm(), 1e-12 * expected.norm()) << "block " << b;
+      EXPECT_EQ(Eigen::MatrixXd(got.triangularView<Eigen::StrictlyLower>()).norm(), 0.0);
+    }
+  }
 }
 
 // umbrella_normal_product (fit_example's regulariser, applied from the Laplacian's neighbour

@@ -44,6 +44,7 @@ class SparseCholesky {
     int factorize_calls = 0;
     double nnz_factor = 0;  // entries of L after the last analysis
     double flops = 0;       // CHOLMOD's flop count of the numeric factorisation
+    double factorize_time_s = 0;  // wall time in numeric factorisations, summed over the calls
     bool supernodal = false;
   };
 

@@ -23,7 +23,9 @@
 
 #include <Eigen/Core>
 #include <Eigen/SparseCore>
+#include <functional>
 #include <memory>
+#include <mutex>
 #include <string>
 #include <vector>
 
@@ -85,6 +87,9 @@ class ExampleProblem {
   // Free dofs of the model and entries of its Cholesky factor (for choosing dense vs matrix-free).
   Eigen::Index num_free_dofs() const;
   double factor_entries() const;
+  // The FEM's numeric factorisations so far (one per simulate()) and their wall time.
+  int factorizations() const;
+  double factorize_time_s() const;
   // Re-freezes the rotations R_e at the last simulate()'s positions (the model's own
   // configuration instead of the measured one).
   void update_rotations();
@@ -153,6 +158,10 @@ struct ParameterFitSummary {
   double time_s = 0;
   bool matrix_free = false;  // which path the own LM took (FitSolver)
   long cg_iterations = 0;    // matrix-free: CG iterations over all LM steps
+  // The FEM's sparse Cholesky factorisations (one per residual) and their share of time_s: in 3-D
+  // their flops grow faster than the tets (nested dissection), the rest of the fit linearly.
+  int fem_factorizations = 0;
+  double fem_factorize_s = 0;
 };
 
 // Fits one (λ, α) shared by all elements (the "average-fit linear co-rotational model") to the
@@ -162,12 +171,40 @@ Result<LambdaAlpha> fit_homogeneous(std::vector<ExampleProblem*> problems,
                                     const ParameterFitOptions& options,
                                     ParameterFitSummary* summary = nullptr);
 
+namespace detail {
+class CoarseSpace;
+}
+
+// What fit_example derives from the mesh and the options alone: the regulariser R (the umbrella
+// Laplacian's, and the Poisson prior) and the matrix-free preconditioner's coarse space (made at
+// its first use). The examples of one mesh share one: fit_heterogeneous makes it once (made per
+// example it took ~10 % of the per-example fits at 3,000-10,000 tets). Thread-safe.
+struct ExampleFitSetup {
+  Eigen::Index tets = 0;
+  double regularization = 0, poisson_prior = 0, initial_poisson = 0, max_poisson = 0;
+  Eigen::SparseMatrix<double> laplacian;       // tet_umbrella_laplacian (vertex)
+  Eigen::SparseMatrix<double> face_laplacian;  // over face neighbours (the coarse space's graph)
+  Eigen::SparseMatrix<double> reg;             // R (rows × 2 #T)
+  Eigen::VectorXd reg_target;  // the regulariser is ‖R q − b‖² (empty: b = 0)
+  std::function<void(const Eigen::VectorXd&, Eigen::VectorXd*)> reg_normal_product;  // RᵀR v
+
+  bool made_for(const ParameterFitOptions& options) const;
+  std::shared_ptr<const detail::CoarseSpace> coarse_space() const;
+
+ private:
+  mutable std::once_flag coarse_once_;
+  mutable std::shared_ptr<const detail::CoarseSpace> coarse_;
+};
+Result<std::shared_ptr<const ExampleFitSetup>> make_example_fit_setup(
+    const TetMesh& mesh, const ParameterFitOptions& options);
+
 // Fits per-element parameters to one example (Eq. 4.10), starting from `initial` (size #T, or 1
 // for uniform; a start with ν outside [0.1, 0.9]·max_poisson is moved to that range's end). On
-// return `*params` holds the estimate (physically valid).
+// return `*params` holds the estimate (physically valid). `setup` (optional) is the mesh's
+// make_example_fit_setup for these options, shared with other examples.
 Status fit_example(ExampleProblem* problem, const std::vector<LambdaAlpha>& initial,
                    const ParameterFitOptions& options, std::vector<LambdaAlpha>* params,
-                   ParameterFitSummary* summary = nullptr);
+                   ParameterFitSummary* summary = nullptr, const ExampleFitSetup* setup = nullptr);
 
 // ---- Joint material fit over all examples (an extension of the thesis's method) ----
 //
