@@ -86,7 +86,7 @@ class DenseLinearization final : public Linearization {
 // ordering and symbolic analysis, which cost more than a numeric factorisation): when the factor's
 // flops, estimated as nnz(L)² / n, stay below kSavedProducts normal products (each a J v and a
 // Jᵀ w). One example's fit (products of two small solves, a regulariser of wide vertex stencil:
-// 1.6M factor entries on 3,072 parameters) gives a coarse space instead (LmProblem::coarse_basis):
+// 1.6M factor entries on 3,072 parameters) gives a coarse space instead (LmProblem::coarse):
 // block-Jacobi then handles the rough modes and an exact solve on the coarse space the smooth
 // ones, an additive two-level preconditioner, B + RᵀR + μ D projected on the coarse space and
 // factorised per LM trial.

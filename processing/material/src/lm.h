@@ -127,13 +127,13 @@ std::function<void(const Eigen::VectorXd&, Eigen::VectorXd*)> umbrella_normal_pr
 // the graph of A's off-diagonal entries.
 Eigen::SparseMatrix<double> neighbourhood(const Eigen::SparseMatrix<double>& a, int rings);
 
-// Smoothed aggregation's coarse basis (Vaněk, Mandel and Brezina 1996) for LmProblem::coarse_basis:
+// Smoothed aggregation's coarse basis (Vaněk, Mandel and Brezina 1996) for a CoarseSpace:
 // aggregates over `graph` (an element whose neighbours are all free, with them; the rest join a
 // neighbouring aggregate), their indicator functions smoothed by one Jacobi step of the umbrella
 // Laplacian L, (I − D⁻¹ L) with D its diagonal: each element's value becomes its L-neighbours'
 // mean. Columns: the aggregates. Written here: an algebraic multigrid package (AMGCL, hypre)
 // would build its hierarchy from the assembled M, whose RᵀR couples two vertex rings, at every LM
-// trial; this basis is built once per example from the mesh's graph alone.
+// trial; this basis is built once per mesh (ExampleFitSetup) from the mesh's graph alone.
 Eigen::SparseMatrix<double> smoothed_aggregation_basis(
     const Eigen::SparseMatrix<double>& graph, const Eigen::SparseMatrix<double>& laplacian);
 

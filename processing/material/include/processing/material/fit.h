@@ -158,8 +158,7 @@ struct ParameterFitSummary {
   double time_s = 0;
   bool matrix_free = false;  // which path the own LM took (FitSolver)
   long cg_iterations = 0;    // matrix-free: CG iterations over all LM steps
-  // The FEM's sparse Cholesky factorisations (one per residual) and their share of time_s: in 3-D
-  // their flops grow faster than the tets (nested dissection), the rest of the fit linearly.
+  // The FEM's sparse Cholesky factorisations (one per residual) and their wall time (in time_s).
   int fem_factorizations = 0;
   double fem_factorize_s = 0;
 };
