@@ -112,6 +112,53 @@ TEST(FitExample, RecoversLayeredStiffnessFromNoiseFreeData) {
   EXPECT_GT(s.iterations, 0);
 }
 
+// fit_heterogeneous shares one ExampleFitSetup (the regulariser and the coarse space) among its
+// examples: a fit with a shared setup must be the fit without one, and a setup made for other
+// options or another mesh must be refused. The matrix-free path is forced so the coarse space is
+// made and used; the FEM's factorisations are counted (one per residual, so at least one per LM
+// iteration) and timed within the fit's time.
+TEST(FitExample, SharedSetupGivesTheSameFitAndRefusesAnotherMeshOrOptions) {
+  TwoLayer b;
+  const Example ex = simulate_example(b.mesh, b.truth, top_nodes_near(b.mesh, 0.02, 0.02, 0.011),
+                                      Eigen::Vector3d(0.5, 0, -3.0));
+  Result<ExampleProblem> problem = ExampleProblem::create(b.mesh, ex);
+  ASSERT_TRUE(problem.ok());
+  ParameterFitOptions options;
+  options.regularization = 1e-4;
+  options.poisson_prior = 0.1;
+  options.solver = FitSolver::kMatrixFree;
+  const fem::LambdaAlpha start = problem->stiffness_guess();
+  std::vector<fem::LambdaAlpha> own, shared;
+  ParameterFitSummary so, ss;
+  ASSERT_TRUE(fit_example(&*problem, {start}, options, &own, &so).ok());
+  Result<std::shared_ptr<const ExampleFitSetup>> setup = make_example_fit_setup(b.mesh, options);
+  ASSERT_TRUE(setup.ok());
+  ASSERT_TRUE(fit_example(&*problem, {start}, options, &shared, &ss, setup->get()).ok());
+  EXPECT_TRUE(so.matrix_free);
+  EXPECT_EQ(so.cg_iterations, ss.cg_iterations);
+  ASSERT_EQ(own.size(), shared.size());
+  for (std::size_t e = 0; e < own.size(); ++e) {
+    EXPECT_EQ(own[e].lambda, shared[e].lambda) << e;
+    EXPECT_EQ(own[e].alpha, shared[e].alpha) << e;
+  }
+  EXPECT_GE(ss.fem_factorizations, ss.iterations);
+  EXPECT_GT(ss.fem_factorize_s, 0.0);
+  EXPECT_LE(ss.fem_factorize_s, ss.time_s);
+
+  ParameterFitOptions other = options;
+  other.regularization = 2e-4;
+  const Status wrong_options = fit_example(&*problem, {start}, other, &shared, &ss, setup->get());
+  EXPECT_EQ(wrong_options.code(), StatusCode::kInvalidArgument) << wrong_options.message();
+  TetMesh smaller = b.mesh;
+  smaller.tets.conservativeResize(smaller.tets.rows() - 1, 4);
+  Result<std::shared_ptr<const ExampleFitSetup>> other_mesh =
+      make_example_fit_setup(smaller, options);
+  ASSERT_TRUE(other_mesh.ok());
+  const Status wrong_mesh =
+      fit_example(&*problem, {start}, options, &shared, &ss, other_mesh->get());
+  EXPECT_EQ(wrong_mesh.code(), StatusCode::kInvalidArgument) << wrong_mesh.message();
+}
+
 TEST(FitExample, OwnLmAndCeresReachTheSameCost) {
   TwoLayer b;
   const Example ex = simulate_example(b.mesh, b.truth, top_nodes_near(b.mesh, 0.02, 0.02, 0.011),
