@@ -18,11 +18,17 @@ using testing::top_nodes_near;
 
 using TwoLayer = testing::TwoLayerBlock;
 
+// The two-layer block pressed by `force` (N) at its top centre, as one example's fit problem.
+ExampleProblem pressed_problem(const TwoLayer& b, const Eigen::Vector3d& force) {
+  Result<ExampleProblem> problem = ExampleProblem::create(b.mesh, b.example(0.02, 0.02, force));
+  testing::fixture_check(problem.ok(), "the pressed two-layer block's problem");
+  return std::move(problem).value();
+}
+
 TEST(ExampleProblem, JacobianMatchesCentralDifferences) {
   // Appendix A's analytic Jacobian vs central differences, relative error <= 1e-6 (issue 3).
   TwoLayer b;
-  Example ex = simulate_example(b.mesh, b.truth, top_nodes_near(b.mesh, 0.02, 0.02, 0.011),
-                                Eigen::Vector3d(0.3, 0.2, -2.0));
+  Example ex = b.example(0.02, 0.02, Eigen::Vector3d(0.3, 0.2, -2.0));
   // Occlude a few nodes so that the rotation reference mixes measured and simulated positions.
   ex.visible[30] = ex.visible[31] = 0;
   Result<ExampleProblem> problem = ExampleProblem::create(b.mesh, ex);
@@ -72,8 +78,7 @@ TEST(ExampleProblem, JacobianMatchesCentralDifferences) {
 
 TEST(ExampleProblem, RefusesUnusableExamples) {
   TwoLayer b;
-  Example ex = simulate_example(b.mesh, b.truth, top_nodes_near(b.mesh, 0.02, 0.02, 0.011),
-                                Eigen::Vector3d(0, 0, -1));
+  Example ex = b.example(0.02, 0.02, Eigen::Vector3d(0, 0, -1));
   Example no_fixed = ex;
   no_fixed.fixed_nodes.clear();
   EXPECT_FALSE(ExampleProblem::create(b.mesh, no_fixed).ok());
@@ -89,8 +94,7 @@ TEST(ExampleProblem, RefusesUnusableExamples) {
 
 TEST(FitExample, RecoversLayeredStiffnessFromNoiseFreeData) {
   TwoLayer b;
-  const Example ex = simulate_example(b.mesh, b.truth, top_nodes_near(b.mesh, 0.02, 0.02, 0.011),
-                                      Eigen::Vector3d(0, 0, -3.0));
+  const Example ex = b.example(0.02, 0.02, Eigen::Vector3d(0, 0, -3.0));
   Result<ExampleProblem> problem = ExampleProblem::create(b.mesh, ex);
   ASSERT_TRUE(problem.ok());
   ParameterFitOptions options;
@@ -119,21 +123,18 @@ TEST(FitExample, RecoversLayeredStiffnessFromNoiseFreeData) {
 // iteration) and timed within the fit's time.
 TEST(FitExample, SharedSetupGivesTheSameFitAndRefusesAnotherMeshOrOptions) {
   TwoLayer b;
-  const Example ex = simulate_example(b.mesh, b.truth, top_nodes_near(b.mesh, 0.02, 0.02, 0.011),
-                                      Eigen::Vector3d(0.5, 0, -3.0));
-  Result<ExampleProblem> problem = ExampleProblem::create(b.mesh, ex);
-  ASSERT_TRUE(problem.ok());
+  ExampleProblem problem = pressed_problem(b, Eigen::Vector3d(0.5, 0, -3.0));
   ParameterFitOptions options;
   options.regularization = 1e-4;
   options.poisson_prior = 0.1;
   options.solver = FitSolver::kMatrixFree;
-  const fem::LambdaAlpha start = problem->stiffness_guess();
+  const fem::LambdaAlpha start = problem.stiffness_guess();
   std::vector<fem::LambdaAlpha> own, shared;
   ParameterFitSummary so, ss;
-  ASSERT_TRUE(fit_example(&*problem, {start}, options, &own, &so).ok());
+  ASSERT_TRUE(fit_example(&problem, {start}, options, &own, &so).ok());
   Result<std::shared_ptr<const ExampleFitSetup>> setup = make_example_fit_setup(b.mesh, options);
   ASSERT_TRUE(setup.ok());
-  ASSERT_TRUE(fit_example(&*problem, {start}, options, &shared, &ss, setup->get()).ok());
+  ASSERT_TRUE(fit_example(&problem, {start}, options, &shared, &ss, setup->get()).ok());
   EXPECT_TRUE(so.matrix_free);
   EXPECT_EQ(so.cg_iterations, ss.cg_iterations);
   ASSERT_EQ(own.size(), shared.size());
@@ -147,7 +148,7 @@ TEST(FitExample, SharedSetupGivesTheSameFitAndRefusesAnotherMeshOrOptions) {
 
   ParameterFitOptions other = options;
   other.regularization = 2e-4;
-  const Status wrong_options = fit_example(&*problem, {start}, other, &shared, &ss, setup->get());
+  const Status wrong_options = fit_example(&problem, {start}, other, &shared, &ss, setup->get());
   EXPECT_EQ(wrong_options.code(), StatusCode::kInvalidArgument) << wrong_options.message();
   TetMesh smaller = b.mesh;
   smaller.tets.conservativeResize(smaller.tets.rows() - 1, 4);
@@ -155,27 +156,24 @@ TEST(FitExample, SharedSetupGivesTheSameFitAndRefusesAnotherMeshOrOptions) {
       make_example_fit_setup(smaller, options);
   ASSERT_TRUE(other_mesh.ok());
   const Status wrong_mesh =
-      fit_example(&*problem, {start}, options, &shared, &ss, other_mesh->get());
+      fit_example(&problem, {start}, options, &shared, &ss, other_mesh->get());
   EXPECT_EQ(wrong_mesh.code(), StatusCode::kInvalidArgument) << wrong_mesh.message();
 }
 
 TEST(FitExample, OwnLmAndCeresReachTheSameCost) {
   TwoLayer b;
-  const Example ex = simulate_example(b.mesh, b.truth, top_nodes_near(b.mesh, 0.02, 0.02, 0.011),
-                                      Eigen::Vector3d(0.5, 0, -3.0));
-  Result<ExampleProblem> problem = ExampleProblem::create(b.mesh, ex);
-  ASSERT_TRUE(problem.ok());
+  ExampleProblem problem = pressed_problem(b, Eigen::Vector3d(0.5, 0, -3.0));
   ParameterFitOptions options;
   options.regularization = 1e-4;
   options.max_iterations = 30;
-  const fem::LambdaAlpha start = problem->stiffness_guess();
+  const fem::LambdaAlpha start = problem.stiffness_guess();
   std::vector<fem::LambdaAlpha> p_own, p_ceres;
   ParameterFitSummary own, ceres;
   const auto t0 = std::chrono::steady_clock::now();
-  ASSERT_TRUE(fit_example(&*problem, {start}, options, &p_own, &own).ok());
+  ASSERT_TRUE(fit_example(&problem, {start}, options, &p_own, &own).ok());
   const auto t1 = std::chrono::steady_clock::now();
   options.backend = FitBackend::kCeres;
-  ASSERT_TRUE(fit_example(&*problem, {start}, options, &p_ceres, &ceres).ok());
+  ASSERT_TRUE(fit_example(&problem, {start}, options, &p_ceres, &ceres).ok());
   const auto t2 = std::chrono::steady_clock::now();
   EXPECT_TRUE(ceres.usable) << ceres.message;
   // Same objective (Eq. 4.10); both optimisers must get within 5 % of each other's final cost.
