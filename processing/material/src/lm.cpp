@@ -594,20 +594,21 @@ Status run_lm(const LmProblem& problem, const LmSettings& settings, Eigen::Vecto
   Preconditioner preconditioner;
   if (problem.matrix_free && has_reg && problem.coarse && problem.coarse->p().rows() == reg.cols())
     preconditioner.coarse = problem.coarse.get();
-  // RᵀR's diagonal blocks, the dot products of R's columns; RᵀR itself only where something reads
+  // RᵀR's diagonal blocks (the matrix-free preconditioner's), the dot products of R's columns;
+  // RᵀR itself only where something reads
   // it: the dense path, a product without the problem's own, and the choice of the whole-RᵀR
   // preconditioner, which a coarse space skips (forming a vertex-stencil RᵀR took 15 % of the
   // per-example fits at 10,000 tets).
   const int block = problem.block;
   Eigen::MatrixXd reg_blocks;
   Eigen::SparseMatrix<double> rtr;
-  if (has_reg) {
+  if (has_reg && problem.matrix_free) {
     reg_blocks.setZero(reg.cols(), block);
     for (Eigen::Index i = 0; i < reg.cols(); ++i)
       for (int c = 0; c < block; ++c) reg_blocks(i, c) = reg.col(i).dot(reg.col(i - i % block + c));
-    if (!problem.matrix_free || !problem.reg_normal_product || !preconditioner.coarse)
-      rtr = reg.transpose() * reg;
   }
+  if (has_reg && (!problem.matrix_free || !problem.reg_normal_product || !preconditioner.coarse))
+    rtr = reg.transpose() * reg;
   ProgressTask task(problem.progress, problem.progress_task,
                     static_cast<std::uint64_t>(settings.max_iterations));
 
@@ -633,7 +634,7 @@ Status run_lm(const LmProblem& problem, const LmSettings& settings, Eigen::Vecto
       HC_ASSIGN_OR_RETURN(
           lin, MatrixFreeLinearization::create(
                    std::move(op), r, reg, rtr, reg_blocks, problem.reg_normal_product, reg_gradient,
-                   problem.block, settings, problem.product_flops, &preconditioner, &rng, g0_norm));
+                   block, settings, problem.product_flops, &preconditioner, &rng, g0_norm));
     } else {
       Eigen::MatrixXd j;
       HC_RETURN_IF_ERROR(problem.jacobian(*q, &j));
