@@ -48,10 +48,21 @@ using K = CGAL::Exact_predicates_inexact_constructions_kernel;
 using Gt = K;
 using Vb0 = CGAL::Regular_triangulation_vertex_base_3<Gt>;
 using Vb = CGAL::Triangulation_vertex_base_with_info_3<int, Gt, Vb0>;
-// Hidden points are not kept: the medial-ball code only needs which points became vertices. The
-// cell's info is its index in the output.
+using WPoint = Gt::Weighted_point_3;
+// Hidden points are not kept: the medial-ball code only needs which points became vertices. With
+// them discarded CGAL still puts its container of them (a std::list by default, 24 bytes) in every
+// cell; this one is empty, and a cell takes 72 bytes instead of 104 (the 3.5 million cells of
+// bench_abstraction's fandisk balls: 112 MB less memory to touch). CGAL reads only end() of it
+// under Discard_hidden_points (Regular_triangulation_cell_base_3.h).
+struct NoHiddenPoints {
+  using iterator = WPoint*;
+  using const_iterator = const WPoint*;
+  iterator end() { return nullptr; }
+  const_iterator end() const { return nullptr; }
+};
+// The cell's info is its index in the output.
 using Cb0 = CGAL::Regular_triangulation_cell_base_3<Gt, CGAL::Triangulation_cell_base_3<Gt>,
-                                                    CGAL::Discard_hidden_points>;
+                                                    CGAL::Discard_hidden_points, NoHiddenPoints>;
 using Cb = CGAL::Triangulation_cell_base_with_info_3<int, Gt, Cb0>;
 // The concurrent data structure: large inputs are inserted in parallel (TBB) under a grid of
 // spatial locks; without a lock grid the same type inserts sequentially.
@@ -75,7 +86,6 @@ constexpr std::size_t kParallelFrom = 20'000;
 // bench_abstraction's fandisk in 2.42 s against 2.55 s at 50 and 2.81 s at 20 (2 cores).
 constexpr int kLockGrid = 100;
 bool large(std::size_t points) { return points >= kParallelFrom; }
-using WPoint = Gt::Weighted_point_3;
 using BPoint = Gt::Point_3;
 // The parallel insertion only pays on idle cores: its threads wait for each other's spatial locks,
 // so a lock holder preempted by another process stalls the rest. Measured on 2 cores
@@ -205,10 +215,17 @@ Result<Triangulation3> extract(T& rt, std::span<const Eigen::Vector3d> points,
   //
   // First the cells in the container's order, which is close to their order in memory, so the
   // passes that dereference them read memory in sequence (each cell's info is its index there);
-  // the output's order and spelling are then made from flat arrays, and the power vertices from
-  // the input arrays rather than through the vertices' handles. Measured on the 3.5 million
-  // cells of bench_abstraction's fandisk balls: 0.86 -> 0.67 s after the insertion (0.57 s with
-  // the balls in spatial order, sampling.cpp).
+  // the output's order is then made from flat arrays, and the power vertices from the input
+  // arrays rather than through the vertices' handles. Measured on the 3.5 million cells of
+  // bench_abstraction's fandisk balls: 0.86 -> 0.67 s after the insertion (0.57 s with the balls
+  // in spatial order, sampling.cpp).
+  //
+  // Memory is the other cost: on the virtual machines we run on, every fresh page costs ~16 us
+  // (a 1 GiB buffer touched page by page: 4.0-4.2 s), about what the work on it costs. So the
+  // corners and neighbours are spelled canonically as they are read, sorted through an index
+  // rather than a copy, and moved into their output order in place, which becomes the output:
+  // 80 bytes of new memory per cell instead of 132, 64 at the peak instead of 112 (on those 3.5
+  // million cells 180 MB less to touch).
   std::vector<typename T::Cell_handle> handles;
   handles.reserve(rt.number_of_cells());
   for (auto c = rt.all_cells_begin(); c != rt.all_cells_end(); ++c) {
@@ -216,36 +233,40 @@ Result<Triangulation3> extract(T& rt, std::span<const Eigen::Vector3d> points,
     handles.push_back(c);
   }
   const std::size_t n = handles.size();
-  // Corners and neighbours of each cell in CGAL's local order.
+  const bool sort = large(points.size());
+  // Corners and neighbours of each cell (container indices), spelled canonically when sorting,
+  // else in CGAL's local order.
   std::vector<std::array<int, 4>> corners(n);
   std::vector<std::array<int, 4>> adjacent(n);
   tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n), [&](const auto& range) {
     for (std::size_t j = range.begin(); j != range.end(); ++j) {
       const typename T::Cell_handle c = handles[j];
+      std::array<int, 4> v{}, a{};
       for (int k = 0; k < 4; ++k) {
-        const auto v = c->vertex(k);
-        corners[j][static_cast<std::size_t>(k)] = rt.is_infinite(v) ? -1 : v->info();
-        adjacent[j][static_cast<std::size_t>(k)] = c->neighbor(k)->info();
+        const auto h = c->vertex(k);
+        v[static_cast<std::size_t>(k)] = rt.is_infinite(h) ? -1 : h->info();
+        a[static_cast<std::size_t>(k)] = c->neighbor(k)->info();
       }
+      if (sort) {
+        const std::array<int, 4> p = canonical_order(v);
+        v = spelled(v, p);
+        a = spelled(a, p);
+      }
+      corners[j] = v;
+      adjacent[j] = a;
     }
   });
-  // order[i]: the container index of output cell i; position is its inverse.
-  const bool sort = large(points.size());
-  std::vector<std::uint32_t> order(n);
+  std::vector<typename T::Cell_handle>().swap(handles);
   if (sort) {
-    struct Key {
-      std::array<int, 4> corners;  // canonical spelling
-      std::uint32_t cell;          // container index
-    };
+    // order[i]: the container index of output cell i; position is its inverse.
+    std::vector<std::uint32_t> order(n);
     // A counting sort on the first corner (the smallest; bucket 0 for -1, the infinite
-    // cells), then each bucket sorted: a fifth of a comparison sort's time on 3.5 million
-    // cells. In parallel: the cells take their places in a bucket by an atomic counter, in
-    // whatever order the threads arrive, which the sort of the bucket then undoes.
+    // cells), then each bucket sorted by the whole spelling (distinct cells have distinct
+    // spellings): a fifth of a comparison sort's time on 3.5 million cells. In parallel: the
+    // cells take their places in a bucket by an atomic counter, in whatever order the threads
+    // arrive, which the sort of the bucket then undoes.
     const std::size_t buckets = points.size() + 1;
-    const auto bucket = [&](std::size_t j) {
-      return static_cast<std::size_t>(
-          std::min({corners[j][0], corners[j][1], corners[j][2], corners[j][3]}) + 1);
-    };
+    const auto bucket = [&](std::size_t j) { return static_cast<std::size_t>(corners[j][0] + 1); };
     std::vector<std::atomic<std::uint32_t>> fill(buckets);
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n), [&](const auto& range) {
       for (std::size_t j = range.begin(); j != range.end(); ++j)
@@ -256,42 +277,56 @@ Result<Triangulation3> extract(T& rt, std::span<const Eigen::Vector3d> points,
       start[b + 1] = start[b] + fill[b].load(std::memory_order_relaxed);
       fill[b].store(start[b], std::memory_order_relaxed);
     }
-    std::vector<Key> sorted(n);
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n), [&](const auto& range) {
-      for (std::size_t j = range.begin(); j != range.end(); ++j) {
-        sorted[fill[bucket(j)].fetch_add(1, std::memory_order_relaxed)] = {
-            spelled(corners[j], canonical_order(corners[j])), static_cast<std::uint32_t>(j)};
-      }
+      for (std::size_t j = range.begin(); j != range.end(); ++j)
+        order[fill[bucket(j)].fetch_add(1, std::memory_order_relaxed)] =
+            static_cast<std::uint32_t>(j);
     });
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, buckets), [&](const auto& r) {
       for (std::size_t b = r.begin(); b != r.end(); ++b) {
-        std::sort(sorted.begin() + start[b], sorted.begin() + start[b + 1],
-                  [](const Key& x, const Key& y) { return x.corners < y.corners; });
+        std::sort(order.begin() + start[b], order.begin() + start[b + 1],
+                  [&](std::uint32_t x, std::uint32_t y) { return corners[x] < corners[y]; });
       }
     });
-    for (std::size_t i = 0; i < n; ++i) order[i] = sorted[i].cell;
-  } else {
-    std::iota(order.begin(), order.end(), 0U);
+    std::vector<std::uint32_t> position(n);
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n), [&](const auto& range) {
+      for (std::size_t i = range.begin(); i != range.end(); ++i)
+        position[order[i]] = static_cast<std::uint32_t>(i);
+    });
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n), [&](const auto& range) {
+      for (std::size_t j = range.begin(); j != range.end(); ++j)
+        for (int& a : adjacent[j]) a = static_cast<int>(position[static_cast<std::size_t>(a)]);
+    });
+    // Into output order in place, cycle by cycle: slot i takes what was at order[i]. A slot
+    // done is marked by order[i] = i.
+    for (std::size_t i = 0; i < n; ++i) {
+      if (order[i] == i) continue;
+      const std::array<int, 4> first_corners = corners[i];
+      const std::array<int, 4> first_adjacent = adjacent[i];
+      std::size_t to = i;
+      for (;;) {
+        const std::size_t from = order[to];
+        order[to] = static_cast<std::uint32_t>(to);
+        if (from == i) {
+          corners[to] = first_corners;
+          adjacent[to] = first_adjacent;
+          break;
+        }
+        corners[to] = corners[from];
+        adjacent[to] = adjacent[from];
+        to = from;
+      }
+    }
   }
-  std::vector<std::uint32_t> position(n);
-  for (std::size_t i = 0; i < n; ++i) position[order[i]] = static_cast<std::uint32_t>(i);
-  out.cells.resize(n);
-  out.neighbours.resize(n);
+  out.cells = std::move(corners);
+  out.neighbours = std::move(adjacent);
   out.centres.assign(n, Eigen::Vector3d::Constant(std::numeric_limits<double>::quiet_NaN()));
   out.squared_radii.assign(n, std::numeric_limits<double>::quiet_NaN());
   const std::span<const std::uint8_t> labels = options.centres_between;
   // Cell by cell, independent: in parallel.
   tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n), [&](const auto& range) {
     for (std::size_t i = range.begin(); i != range.end(); ++i) {
-      const std::size_t j = order[i];
-      const std::array<int, 4> p =
-          sort ? canonical_order(corners[j]) : std::array<int, 4>{0, 1, 2, 3};
-      const std::array<int, 4> v = spelled(corners[j], p);
-      out.cells[i] = v;
-      for (std::size_t k = 0; k < 4; ++k) {
-        out.neighbours[i][k] = static_cast<int>(
-            position[static_cast<std::size_t>(adjacent[j][static_cast<std::size_t>(p[k])])]);
-      }
+      const std::array<int, 4>& v = out.cells[i];
       if (v[0] < 0) continue;  // infinite
       if (!labels.empty()) {
         const std::uint8_t l = labels[static_cast<std::size_t>(v[0])];

@@ -170,6 +170,12 @@ Result<Balls3> medial_balls_3d(const Samples3& samples, const InsideTest<3>& ins
       in[k] = inside(dt.centres[kept[k]]) ? 1 : 0;
   });
   Balls3 balls;
+  // Sized once: growing by doubling would touch twice the memory (see regular_triangulation_3.cpp
+  // on what fresh pages cost).
+  balls.centres.reserve(kept.size());
+  balls.radii.reserve(kept.size());
+  balls.interior.reserve(kept.size());
+  balls.defining.reserve(kept.size());
   for (std::size_t k = 0; k < kept.size(); ++k) {
     const std::size_t c = kept[k];
     balls.push_back(dt.centres[c], std::sqrt(dt.squared_radii[c]), in[k] != 0);

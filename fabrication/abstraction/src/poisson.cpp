@@ -3,6 +3,7 @@
 #include <fmt/format.h>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <numeric>
 
@@ -123,16 +124,25 @@ Status draw_pools(const Elements<D>& elements, std::span<const Vec<D>> corners,
     total += expected[i];
   }
   if (total <= 0.0) return {};
+  const double scale = std::min(1.0, static_cast<double>(options.max_pool) / total);
+  // The pools' sizes first, so the outputs are sized once (growing by doubling would touch twice
+  // the memory).
+  std::array<double, 3> sum{};
+  for (std::size_t i = 0; i < expected.size(); ++i) sum[e.simplices[i].pool] += expected[i];
+  std::size_t drawn = points->size();
+  for (const double s : sum) drawn += static_cast<std::size_t>(std::ceil(s * scale));
+  points->reserve(drawn);
+  pool->pool.reserve(drawn);
+  pool->kind.reserve(drawn);
+  pool->r.reserve(drawn);
   // One alias table per pool (E_p and T_p are drawn separately so both keep their density).
   for (const std::uint8_t which : {std::uint8_t{1}, std::uint8_t{2}}) {
+    if (sum[which] <= 0.0) continue;
     std::vector<double> w(expected.size(), 0.0);
-    double sum = 0.0;
     for (std::size_t i = 0; i < w.size(); ++i) {
-      if (e.simplices[i].pool == which) sum += (w[i] = expected[i]);
+      if (e.simplices[i].pool == which) w[i] = expected[i];
     }
-    if (sum <= 0.0) continue;
-    const double scale = std::min(1.0, static_cast<double>(options.max_pool) / total);
-    const auto count = static_cast<std::size_t>(std::ceil(sum * scale));
+    const auto count = static_cast<std::size_t>(std::ceil(sum[which] * scale));
     HC_ASSIGN_OR_RETURN(AliasTable table, AliasTable::build(w));
     std::uniform_real_distribution<double> u(0.0, 1.0);
     for (std::size_t n = 0; n < count; ++n) {
