@@ -10,6 +10,7 @@
 //
 //   bench_abstraction [SAMPLE_MESH] [ENGRAVE_MESH | -]     (- skips part 2)
 #include <fmt/format.h>
+#include <sys/resource.h>
 
 #include <chrono>
 #include <cmath>
@@ -31,6 +32,15 @@ double since(Clock::time_point t) {
   return std::chrono::duration<double>(Clock::now() - t).count();
 }
 
+// Page faults of this process so far: each is a fresh page touched, and on the virtual machines we
+// run on one costs ~16 us (a 1 GiB buffer touched page by page: 4.0-4.2 s), so the memory a
+// stage touches is part of its time, counted here apart from the noisy clock.
+long faults() {
+  rusage u{};
+  getrusage(RUSAGE_SELF, &u);
+  return u.ru_minflt + u.ru_majflt;
+}
+
 Eigen::AlignedBox3d box_of(const hc::TriangleMesh& m) {
   Eigen::AlignedBox3d b;
   for (Eigen::Index i = 0; i < m.num_vertices(); ++i) b.extend(m.vertices.row(i).transpose());
@@ -45,22 +55,28 @@ int reconstruction(const std::string& path) {
   o.sampling.r_max_fraction = 1e-2;
   o.sampling.r_min_fraction = 2.2e-3;
   o.sampling.r_uniform_fraction = 1e-2;
+  long f = faults();
   auto t = Clock::now();
   SamplingSummary ss;
   auto samples = sample_mesh(*mesh, o.sampling, {}, &ss);
   if (!samples.ok()) return fmt::print(stderr, "{}\n", samples.status().to_string()), 2;
   const double t_sampling = since(t);
+  const long f_sampling = faults() - f;
   auto dist = hc::geometry::MeshDistance::build(*mesh);
+  f = faults();
   t = Clock::now();
   MedialSummary ms;
   auto balls = medial_balls_3d(
       *samples, [&](const Eigen::Vector3d& p) { return dist->inside(p); }, o.medial, &ms);
   if (!balls.ok()) return fmt::print(stderr, "{}\n", balls.status().to_string()), 2;
   const double t_balls = since(t);
+  const long f_balls = faults() - f;
+  f = faults();
   t = Clock::now();
   auto rt = hc::geometry::triangulate_3d(balls->centres, power_weights(*balls),
                                          {.centres_between = balls->interior});
   const double t_rt = since(t);
+  const long f_rt = faults() - f;
   t = Clock::now();
   auto crust = crust_faces_3d(*rt, *balls);
   const double t_faces = since(t);
@@ -70,12 +86,14 @@ int reconstruction(const std::string& path) {
   const double t_check = since(t);
   const double total = t_sampling + t_balls + t_rt + t_faces;
   fmt::print("reconstruction of {} ({} triangles)\n", path, mesh->num_triangles());
-  fmt::print("  samples {:>8}  (pool {}, uniform pass {})   {:6.2f} s\n", ss.samples, ss.pool,
-             ss.uniform_samples, t_sampling);
-  fmt::print("  balls   {:>8}  (Delaunay, poles, labels)     {:6.2f} s\n", balls->size(), t_balls);
+  fmt::print("  samples {:>8}  (pool {}, uniform pass {})   {:6.2f} s  {:>7} page faults\n",
+             ss.samples, ss.pool, ss.uniform_samples, t_sampling, f_sampling);
+  fmt::print("  balls   {:>8}  (Delaunay, poles, labels)     {:6.2f} s  {:>7} page faults\n",
+             balls->size(), t_balls, f_balls);
   fmt::print("          ({} poles of {} Voronoi vertices; {} interior)\n", ms.poles,
              ms.voronoi_vertices, ms.interior);
-  fmt::print("  regular triangulation of the balls            {:6.2f} s\n", t_rt);
+  fmt::print("  regular triangulation of the balls            {:6.2f} s  {:>7} page faults\n", t_rt,
+             f_rt);
   fmt::print("  crust   {:>8} triangles                     {:6.2f} s\n", crust->num_triangles(),
              t_faces);
   fmt::print("  total (target <= 5 s)                         {:6.2f} s\n", total);
@@ -84,14 +102,15 @@ int reconstruction(const std::string& path) {
              cs.self_intersecting_pairs, t_check);
   // What a caller runs: the triangulation, the crust with its retries where snapping made it
   // touch itself, and the checks.
+  f = faults();
   t = Clock::now();
   CrustSummary whole;
   auto valid = power_crust_3d(*balls, &whole);
   fmt::print(
       "  power_crust_3d (triangulation, crust, retries, checks): {}, {} triangles, {} hidden "
-      "balls  {:6.2f} s\n",
+      "balls  {:6.2f} s  {} page faults\n",
       valid.ok() ? "valid" : valid.status().to_string(), whole.triangles, whole.hidden_balls,
-      since(t));
+      since(t), faults() - f);
   fmt::print("  sampling + balls + power_crust_3d                 {:6.2f} s\n",
              t_sampling + t_balls + since(t));
   return 0;
