@@ -32,9 +32,8 @@ double since(Clock::time_point t) {
   return std::chrono::duration<double>(Clock::now() - t).count();
 }
 
-// Page faults of this process so far: each is a fresh page touched, and on the virtual machines we
-// run on one costs ~16 us (a 1 GiB buffer touched page by page: 4.0-4.2 s), so the memory a
-// stage touches is part of its time, counted here apart from the noisy clock.
+// Page faults of this process so far: fresh pages touched, which cost ~16 us each on the virtual
+// machines we run on (regular_triangulation_3.cpp), counted apart from the noisy clock.
 long faults() {
   rusage u{};
   getrusage(RUSAGE_SELF, &u);

@@ -25,6 +25,19 @@ ExampleProblem pressed_problem(const TwoLayer& b, const Eigen::Vector3d& force) 
   return std::move(problem).value();
 }
 
+// The two-layer block pressed by (0.5, 0, -3) N, to be fitted from its stiffness guess under a
+// weak regulariser: what the FitExample comparisons below start from.
+struct PressedFit {
+  TwoLayer b;
+  ExampleProblem problem = pressed_problem(b, Eigen::Vector3d(0.5, 0, -3.0));
+  ParameterFitOptions options = [] {
+    ParameterFitOptions o;
+    o.regularization = 1e-4;
+    return o;
+  }();
+  fem::LambdaAlpha start = problem.stiffness_guess();
+};
+
 TEST(ExampleProblem, JacobianMatchesCentralDifferences) {
   // Appendix A's analytic Jacobian vs central differences, relative error <= 1e-6 (issue 3).
   TwoLayer b;
@@ -122,19 +135,16 @@ TEST(FitExample, RecoversLayeredStiffnessFromNoiseFreeData) {
 // made and used; the FEM's factorisations are counted (one per residual, so at least one per LM
 // iteration) and timed within the fit's time.
 TEST(FitExample, SharedSetupGivesTheSameFitAndRefusesAnotherMeshOrOptions) {
-  TwoLayer b;
-  ExampleProblem problem = pressed_problem(b, Eigen::Vector3d(0.5, 0, -3.0));
-  ParameterFitOptions options;
-  options.regularization = 1e-4;
+  PressedFit f;
+  ParameterFitOptions& options = f.options;
   options.poisson_prior = 0.1;
   options.solver = FitSolver::kMatrixFree;
-  const fem::LambdaAlpha start = problem.stiffness_guess();
   std::vector<fem::LambdaAlpha> own, shared;
   ParameterFitSummary so, ss;
-  ASSERT_TRUE(fit_example(&problem, {start}, options, &own, &so).ok());
-  Result<std::shared_ptr<const ExampleFitSetup>> setup = make_example_fit_setup(b.mesh, options);
+  ASSERT_TRUE(fit_example(&f.problem, {f.start}, options, &own, &so).ok());
+  Result<std::shared_ptr<const ExampleFitSetup>> setup = make_example_fit_setup(f.b.mesh, options);
   ASSERT_TRUE(setup.ok());
-  ASSERT_TRUE(fit_example(&problem, {start}, options, &shared, &ss, setup->get()).ok());
+  ASSERT_TRUE(fit_example(&f.problem, {f.start}, options, &shared, &ss, setup->get()).ok());
   EXPECT_TRUE(so.matrix_free);
   EXPECT_EQ(so.cg_iterations, ss.cg_iterations);
   ASSERT_EQ(own.size(), shared.size());
@@ -148,32 +158,30 @@ TEST(FitExample, SharedSetupGivesTheSameFitAndRefusesAnotherMeshOrOptions) {
 
   ParameterFitOptions other = options;
   other.regularization = 2e-4;
-  const Status wrong_options = fit_example(&problem, {start}, other, &shared, &ss, setup->get());
+  const Status wrong_options =
+      fit_example(&f.problem, {f.start}, other, &shared, &ss, setup->get());
   EXPECT_EQ(wrong_options.code(), StatusCode::kInvalidArgument) << wrong_options.message();
-  TetMesh smaller = b.mesh;
+  TetMesh smaller = f.b.mesh;
   smaller.tets.conservativeResize(smaller.tets.rows() - 1, 4);
   Result<std::shared_ptr<const ExampleFitSetup>> other_mesh =
       make_example_fit_setup(smaller, options);
   ASSERT_TRUE(other_mesh.ok());
   const Status wrong_mesh =
-      fit_example(&problem, {start}, options, &shared, &ss, other_mesh->get());
+      fit_example(&f.problem, {f.start}, options, &shared, &ss, other_mesh->get());
   EXPECT_EQ(wrong_mesh.code(), StatusCode::kInvalidArgument) << wrong_mesh.message();
 }
 
 TEST(FitExample, OwnLmAndCeresReachTheSameCost) {
-  TwoLayer b;
-  ExampleProblem problem = pressed_problem(b, Eigen::Vector3d(0.5, 0, -3.0));
-  ParameterFitOptions options;
-  options.regularization = 1e-4;
+  PressedFit f;
+  ParameterFitOptions& options = f.options;
   options.max_iterations = 30;
-  const fem::LambdaAlpha start = problem.stiffness_guess();
   std::vector<fem::LambdaAlpha> p_own, p_ceres;
   ParameterFitSummary own, ceres;
   const auto t0 = std::chrono::steady_clock::now();
-  ASSERT_TRUE(fit_example(&problem, {start}, options, &p_own, &own).ok());
+  ASSERT_TRUE(fit_example(&f.problem, {f.start}, options, &p_own, &own).ok());
   const auto t1 = std::chrono::steady_clock::now();
   options.backend = FitBackend::kCeres;
-  ASSERT_TRUE(fit_example(&problem, {start}, options, &p_ceres, &ceres).ok());
+  ASSERT_TRUE(fit_example(&f.problem, {f.start}, options, &p_ceres, &ceres).ok());
   const auto t2 = std::chrono::steady_clock::now();
   EXPECT_TRUE(ceres.usable) << ceres.message;
   // Same objective (Eq. 4.10); both optimisers must get within 5 % of each other's final cost.
