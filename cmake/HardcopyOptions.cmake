@@ -6,6 +6,20 @@ if(HARDCOPY_WERROR)
   target_compile_options(hardcopy_flags INTERFACE -Werror)
 endif()
 
+# Unity builds: each target's sources compiled in batches of 8 (the tests: one file per room, in
+# tests/CMakeLists.txt), so the headers most files share (Eigen, nlohmann::json, GoogleTest, the
+# project's own) are parsed once per batch instead of once per file. Measured on the 2-core CI
+# machine kind with g++ 12: the unit tests' objects 8 min 41 s -> 4 min 20 s. The price: names at a
+# source file's namespace scope (anonymous namespaces included) must be unique within its target,
+# and an overload of the same name from another file could be chosen silently, so give helpers
+# distinct names or share them from a header. g++'s -Wsubobject-linkage, which flags types from an
+# anonymous namespace used in a header's classes, mistakes the batched sources for headers.
+option(HARDCOPY_UNITY_BUILD "Compile each target's sources in batches (faster clean builds)" ON)
+set(CMAKE_UNITY_BUILD ${HARDCOPY_UNITY_BUILD})
+if(HARDCOPY_UNITY_BUILD AND CMAKE_CXX_COMPILER_ID STREQUAL "GNU")
+  target_compile_options(hardcopy_flags INTERFACE -Wno-subobject-linkage)
+endif()
+
 if(HARDCOPY_SANITIZE)
   # AddressSanitizer and UndefinedBehaviorSanitizer's checks that cost little to compile. Left out:
   # null and alignment (ASan reports a null access as a SEGV with its stack; x86 tolerates

@@ -34,7 +34,7 @@ constexpr std::size_t kIndexFrom = 16;
 constexpr std::size_t kMaxReportedErrors = 50;
 // Kept for sorting; beyond this only the count grows.
 constexpr std::size_t kMaxStoredErrors = 1000;
-constexpr std::size_t kMaxQuotedChars = 60;
+constexpr std::size_t kMaxQuotedConfigChars = 60;
 // A pasted paragraph as a key would make every path below it (and every message) huge.
 constexpr std::size_t kMaxKeyInPath = 64;
 
@@ -167,7 +167,7 @@ std::size_t line_of(const YAML::Node& node, std::size_t fallback) {
 std::string quote(std::string_view text) {
   std::string out = "'";
   for (std::size_t i = 0; i < text.size(); ++i) {
-    if (i == kMaxQuotedChars) {
+    if (i == kMaxQuotedConfigChars) {
       out += "...";
       break;
     }

@@ -10,7 +10,7 @@ namespace hc {
 
 namespace {
 
-constexpr std::size_t kMaxQuotedChars = 40;
+constexpr std::size_t kMaxQuotedJsonChars = 40;
 
 std::string member_path(const std::string& path, std::string_view key) {
   if (path.empty()) return std::string(key);
@@ -40,9 +40,9 @@ std::string describe_json(const Json& v) {
       return v.dump();
     case Json::value_t::string: {
       const std::string& s = v.get_ref<const std::string&>();
-      if (s.size() <= kMaxQuotedChars)
+      if (s.size() <= kMaxQuotedJsonChars)
         return Json(s).dump(-1, ' ', false, Json::error_handler_t::replace);
-      return Json(s.substr(0, kMaxQuotedChars) + "...")
+      return Json(s.substr(0, kMaxQuotedJsonChars) + "...")
           .dump(-1, ' ', false, Json::error_handler_t::replace);
     }
     case Json::value_t::array:

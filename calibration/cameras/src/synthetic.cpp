@@ -1,6 +1,7 @@
 #include "calibration/cameras/synthetic.h"
 
 #include <Eigen/Geometry>
+#include <numbers>
 
 #include <algorithm>
 #include <cmath>
@@ -9,8 +10,7 @@
 namespace hc::calib {
 
 namespace {
-constexpr double kPi = 3.14159265358979323846;
-double rad(double deg) { return deg * kPi / 180.0; }
+double rad(double deg) { return deg * std::numbers::pi / 180.0; }
 }  // namespace
 
 std::vector<CameraModel> make_half_circle_rig(const SyntheticRigOptions& o) {
@@ -161,7 +161,7 @@ std::vector<Eigen::Isometry3d> random_board_poses(const std::vector<CameraModel>
                  .toRotationMatrix();
     } else {
       // Tilt of a magnitude in [min, max] about a random axis in the board plane.
-      const double azimuth = kPi * ax;
+      const double azimuth = std::numbers::pi * ax;
       const double angle =
           rad(o.min_tilt_deg + 0.5 * (ay + 1.0) * (o.max_tilt_deg - o.min_tilt_deg));
       tilt = (Eigen::AngleAxisd(angle, Eigen::Vector3d(std::cos(azimuth), std::sin(azimuth), 0.0)) *
@@ -226,7 +226,7 @@ SyntheticRigOptions capture_rig_options(int cameras) {
   o.cameras = cameras;
   // rig_sim_hires.yaml: centres 0.22 m from the axis and 0.195 m above the look-at point.
   o.radius_m = std::hypot(0.22, 0.195);
-  o.elevation_deg = std::atan2(0.195, 0.22) * 180.0 / kPi;
+  o.elevation_deg = std::atan2(0.195, 0.22) * 180.0 / std::numbers::pi;
   o.arc_deg = 180.0;
   o.focal_px = 3500.0;
   o.distortion = {-0.045, 0.08, 0.0003, -0.0002, 0.0};  // rig_sim_hires.yaml's cam0

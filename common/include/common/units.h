@@ -3,6 +3,7 @@
 // edge (print files, reports) and are converted here, in one place.
 #pragma once
 
+#include <numbers>
 #include <optional>
 #include <string_view>
 
@@ -15,6 +16,7 @@ inline constexpr double kMetresPerInch = 0.0254;  // exact, international inch (
 inline constexpr double kMetresPerFoot = 0.3048;  // exact, international foot (1959)
 inline constexpr double kPascalsPerMegapascal = 1e6;
 inline constexpr double kNanosecondsPerSecond = 1e9;
+inline constexpr double kRadiansPerDegree = std::numbers::pi / 180;
 
 constexpr double mm_to_m(double mm) { return mm * kMetresPerMillimetre; }
 constexpr double m_to_mm(double m) { return m / kMetresPerMillimetre; }

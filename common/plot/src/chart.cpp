@@ -1,6 +1,7 @@
 #include "plot/chart.h"
 
 #include <fmt/format.h>
+#include <numbers>
 
 #include <algorithm>
 #include <array>
@@ -15,8 +16,6 @@ namespace hc::plot {
 namespace {
 
 using detail::Align;
-
-constexpr double kPi = 3.14159265358979323846;
 
 struct Range {
   double lo = std::numeric_limits<double>::infinity();
@@ -67,7 +66,7 @@ void draw_marker(cairo_t* cr, MarkerStyle m, double x, double y, double r) {
       return;
     case MarkerStyle::kCircle:
       cairo_new_sub_path(cr);
-      cairo_arc(cr, x, y, r, 0, 2 * kPi);
+      cairo_arc(cr, x, y, r, 0, 2 * std::numbers::pi);
       cairo_fill(cr);
       return;
     case MarkerStyle::kSquare:
@@ -154,7 +153,7 @@ void draw_frame(cairo_t* cr, const Chart& chart, const Frame& f, double font, bo
   detail::draw_text(cr, chart.x.label, 0.5 * (f.left + f.right), f.bottom + 2.1 * font,
                     Align::kCentre, Align::kStart);
   detail::draw_text(cr, chart.y.label, 0.9 * font, 0.5 * (f.top + f.bottom), Align::kCentre,
-                    Align::kStart, -kPi / 2);
+                    Align::kStart, -std::numbers::pi / 2);
   detail::set_font(cr, 1.25 * font, true);
   detail::draw_text(cr, chart.title, 0.5 * (f.left + f.right), 0.7 * font, Align::kCentre,
                     Align::kStart);
@@ -203,7 +202,7 @@ void draw_bars(cairo_t* cr, const Chart& chart, const Frame& f, double font) {
     detail::set_color(cr, Rgb{0.15, 0.15, 0.15});
     if (slanted)
       detail::draw_text(cr, b.label, cx, f.bottom + 0.45 * font, Align::kEnd, Align::kCentre,
-                        -kPi / 6);
+                        -std::numbers::pi / 6);
     else
       detail::draw_text(cr, b.label, cx, f.bottom + 0.45 * font, Align::kCentre, Align::kStart);
   }
@@ -222,8 +221,8 @@ void draw_legend(cairo_t* cr, const Chart& chart, const Frame& f, double font) {
   const double row = 1.45 * font, sample = 2.2 * font, pad = 0.6 * font;
   const double w = pad + sample + pad + text_w + pad;
   const double h = pad + row * static_cast<double>(shown.size()) + 0.3 * pad;
-  const bool left = chart.legend == LegendPlacement::kTopLeft ||
-                    chart.legend == LegendPlacement::kBottomLeft;
+  const bool left =
+      chart.legend == LegendPlacement::kTopLeft || chart.legend == LegendPlacement::kBottomLeft;
   const bool top =
       chart.legend == LegendPlacement::kTopLeft || chart.legend == LegendPlacement::kTopRight;
   const double x0 = left ? f.left + pad : f.right - pad - w;
@@ -282,8 +281,8 @@ Status Chart::validate() const {
     return invalid_argument("chart '" + title + "': nothing to draw (no series, no bars)");
   for (std::size_t i = 0; i < series.size(); ++i) {
     const Series& s = series[i];
-    const std::string where = "chart '" + title + "': series " + std::to_string(i) + " ('" +
-                              s.label + "')";
+    const std::string where =
+        "chart '" + title + "': series " + std::to_string(i) + " ('" + s.label + "')";
     if (s.x.size() != s.y.size())
       return invalid_argument(where + ": " + std::to_string(s.x.size()) + " x values but " +
                               std::to_string(s.y.size()) + " y values");

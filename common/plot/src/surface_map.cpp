@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <numbers>
 #include <numeric>
 
 #include "cairo_canvas.h"
@@ -12,8 +13,6 @@ namespace {
 
 using detail::Align;
 using Vec3 = std::array<double, 3>;
-
-constexpr double kPi = 3.14159265358979323846;
 
 double dot(const Vec3& a, const Vec3& b) { return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]; }
 Vec3 cross(const Vec3& a, const Vec3& b) {
@@ -72,7 +71,7 @@ void draw_colour_bar(cairo_t* cr, double x, double top, double bottom, double lo
   }
   detail::set_font(cr, 1.08 * font);
   detail::draw_text(cr, label, x + w + 4.6 * font, 0.5 * (top + bottom), Align::kCentre,
-                    Align::kStart, -kPi / 2);
+                    Align::kStart, -std::numbers::pi / 2);
 }
 
 // A bar of a nice length with its value, bottom left of the map.
@@ -138,7 +137,8 @@ Status SurfaceMap::validate() const {
   for (const auto& m : marks)
     for (double c : m)
       if (!std::isfinite(c)) return invalid_argument(where + ": a mark is not finite");
-  if (!(dot(view_direction, view_direction) > 0) || !std::isfinite(dot(view_direction, view_direction)))
+  if (!(dot(view_direction, view_direction) > 0) ||
+      !std::isfinite(dot(view_direction, view_direction)))
     return invalid_argument(where + ": the view direction must be a non-zero finite vector");
   if ((value_min && !std::isfinite(*value_min)) || (value_max && !std::isfinite(*value_max)))
     return invalid_argument(where + ": non-finite colour scale end");
@@ -219,8 +219,8 @@ Result<std::string> render_surface_map(const SurfaceMap& map, ImageFormat format
       p[k] = page(uv[static_cast<std::size_t>(tri[k])]);
       v[k] = map.values[static_cast<std::size_t>(tri[k])];
     }
-    const double span = (*std::max_element(v.begin(), v.end()) -
-                         *std::min_element(v.begin(), v.end())) / (hi - lo);
+    const double span =
+        (*std::max_element(v.begin(), v.end()) - *std::min_element(v.begin(), v.end())) / (hi - lo);
     const int n = std::clamp(static_cast<int>(std::ceil(span / kMaxSpan)), 1, kMaxSplits);
     // Barycentric grid: point (i, j) = p0 + i/n (p1 - p0) + j/n (p2 - p0), likewise the value.
     const auto at = [&](int i, int j) {
@@ -248,7 +248,7 @@ Result<std::string> render_surface_map(const SurfaceMap& map, ImageFormat format
   for (const Vec3& m : map.marks) {
     const auto p = page({dot(m, view.right), dot(m, view.up)});
     cairo_new_sub_path(cr);
-    cairo_arc(cr, p[0], p[1], 4.0, 0, 2 * kPi);
+    cairo_arc(cr, p[0], p[1], 4.0, 0, 2 * std::numbers::pi);
     detail::set_color(cr, Rgb{0, 0, 0});
     cairo_fill_preserve(cr);
     detail::set_color(cr, Rgb{1, 1, 1});

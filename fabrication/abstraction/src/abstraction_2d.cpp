@@ -6,15 +6,12 @@
 #include <cmath>
 #include <deque>
 
+#include "common/clock.h"
 #include "fabrication/abstraction/abstraction.h"
 #include "geometry/triangulation_2d.h"
 
 namespace hc::abstraction {
 namespace {
-
-double seconds_since(std::chrono::steady_clock::time_point t0) {
-  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-}
 
 using Graph = std::vector<std::vector<int>>;
 

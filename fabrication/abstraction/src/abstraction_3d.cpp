@@ -9,15 +9,12 @@
 #include <numeric>
 #include <unordered_set>
 
+#include "common/clock.h"
 #include "fabrication/abstraction/abstraction.h"
 #include "geometry/regular_triangulation.h"
 
 namespace hc::abstraction {
 namespace {
-
-double seconds_since(std::chrono::steady_clock::time_point t0) {
-  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-}
 
 int find(std::vector<int>& p, int x) {
   while (p[static_cast<std::size_t>(x)] != x) {

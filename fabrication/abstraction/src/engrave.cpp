@@ -5,14 +5,11 @@
 #include <chrono>
 #include <cmath>
 
+#include "common/clock.h"
 #include "fabrication/abstraction/abstraction.h"
 
 namespace hc::abstraction {
 namespace {
-
-double seconds_since(std::chrono::steady_clock::time_point t0) {
-  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-}
 
 // The balls with only the closed regions inside: `before` are the labels ahead of abstraction.
 template <int D>

@@ -1,4 +1,5 @@
 #include "fabrication/abstraction/medial_balls.h"
+#include "common/clock.h"
 
 #include <fmt/format.h>
 #include <tbb/blocked_range.h>
@@ -80,10 +81,6 @@ Poles compute_poles(const geometry::Triangulation3& dt, std::span<const Eigen::V
 }
 
 namespace {
-
-double seconds_since(std::chrono::steady_clock::time_point t0) {
-  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-}
 
 template <int D>
 Eigen::AlignedBox<double, D> box_of(const std::vector<Eigen::Matrix<double, D, 1>>& pts) {

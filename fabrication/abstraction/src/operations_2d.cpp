@@ -4,15 +4,12 @@
 #include <chrono>
 #include <cmath>
 
+#include "common/clock.h"
 #include "fabrication/abstraction/operations.h"
 #include "operations_internal.h"
 
 namespace hc::abstraction {
 namespace {
-
-double seconds_since(std::chrono::steady_clock::time_point t0) {
-  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-}
 
 // Where segments pq and rs cross (proper crossings and touching points), if they do.
 std::optional<Eigen::Vector2d> crossing(const Eigen::Vector2d& p, const Eigen::Vector2d& q,

@@ -7,6 +7,7 @@
 #include <cmath>
 #include <unordered_map>
 
+#include "common/clock.h"
 #include "fabrication/abstraction/operations.h"
 #include "geometry/booleans.h"
 #include "geometry/mesh_distance.h"
@@ -14,10 +15,6 @@
 
 namespace hc::abstraction {
 namespace {
-
-double seconds_since(std::chrono::steady_clock::time_point t0) {
-  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-}
 
 Result<geometry::MeshDistance> closed_mesh(const TriangleMesh& mesh, std::string_view what) {
   HC_ASSIGN_OR_RETURN(geometry::MeshDistance d, geometry::MeshDistance::build(mesh));
@@ -238,9 +235,8 @@ Result<TriangleMesh> boolean_3d(const TriangleMesh& a, const TriangleMesh& b, Bo
     // The crust is not a valid solid: the exact boolean of the same inputs instead.
     auto exact = geometry::corefine_boolean(a, b, to_geometry(op));
     if (!exact.ok()) {
-      return out.status().with_context(
-          fmt::format("boolean {} (and its exact fallback: {})", to_string(op),
-                      exact.status().message()));
+      return out.status().with_context(fmt::format("boolean {} (and its exact fallback: {})",
+                                                   to_string(op), exact.status().message()));
     }
     if (exact->num_triangles() == 0)
       return invalid_argument(fmt::format("boolean {}: the result is empty", to_string(op)));

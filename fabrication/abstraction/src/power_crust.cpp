@@ -1,4 +1,5 @@
 #include "fabrication/abstraction/power_crust.h"
+#include "common/clock.h"
 
 #include <fmt/format.h>
 #include <tbb/blocked_range.h>
@@ -16,10 +17,6 @@
 
 namespace hc::abstraction {
 namespace {
-
-double seconds_since(std::chrono::steady_clock::time_point t0) {
-  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-}
 
 // The local corner pairs of a tet: (a, b, c, d) an even permutation of (0, 1, 2, 3).
 constexpr int kTetEdges[6][4] = {{0, 1, 2, 3}, {0, 2, 3, 1}, {0, 3, 1, 2},
@@ -181,8 +178,8 @@ std::vector<double> power_weights(const Balls<D>& balls, std::uint64_t seed) {
   std::vector<double> w(balls.size());
   for (std::size_t i = 0; i < w.size(); ++i) {
     // A fixed pseudo-random u in [0, 1) per ball (splitmix64 of its index and the seed).
-    std::uint64_t z = (static_cast<std::uint64_t>(i) + 1 + seed * 0xD1B54A32D192ED03ULL) *
-                      0x9E3779B97F4A7C15ULL;
+    std::uint64_t z =
+        (static_cast<std::uint64_t>(i) + 1 + seed * 0xD1B54A32D192ED03ULL) * 0x9E3779B97F4A7C15ULL;
     z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ULL;
     z = (z ^ (z >> 27)) * 0x94D049BB133111EBULL;
     const double u = static_cast<double>((z ^ (z >> 31)) >> 11) * 0x1.0p-53;

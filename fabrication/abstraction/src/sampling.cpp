@@ -2,6 +2,7 @@
 // the pipeline they share (uniform pass -> approximate medial axis -> radius field -> pools ->
 // elimination).
 #include "fabrication/abstraction/sampling.h"
+#include "common/clock.h"
 
 #include <fmt/format.h>
 
@@ -86,10 +87,6 @@ namespace {
 
 constexpr double kSplitFactor = 1.0;  // simplices split until no longer than their r
 constexpr std::size_t kMaxSimplices = 20'000'000;
-
-double seconds_since(std::chrono::steady_clock::time_point t0) {
-  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-}
 
 // Distance to the nearest of a fixed set of sites, queried once per split round: in 3-D by a k-d
 // tree built once; 2-D inputs are small enough to triangulate each round.

@@ -1,4 +1,5 @@
 #include "fabrication/articulation/articulate.h"
+#include "common/units.h"
 
 #include <fmt/format.h>
 
@@ -12,9 +13,7 @@
 namespace hc::articulation {
 namespace {
 
-constexpr double kMm = 1e-3;
-constexpr double kDeg = std::numbers::pi / 180;
-constexpr double kMaxCone = 80 * kDeg;
+constexpr double kMaxCone = 80 * units::kRadiansPerDegree;
 const Eigen::Vector3d kUp = Eigen::Vector3d::UnitY();
 
 class Stopwatch {
@@ -64,7 +63,7 @@ void apply_motion(const ArticulateOptions& o, const LinkMotion& motion,
     j->reason = fmt::format(
         "fused: the links never turn more than {:.1f} deg relative to each "
         "other in the clips",
-        o.motion.fused_below_rad / kDeg);
+        o.motion.fused_below_rad / units::kRadiansPerDegree);
     return;
   }
   j->source = JointSource::kAnimation;
@@ -87,7 +86,7 @@ void apply_motion(const ArticulateOptions& o, const LinkMotion& motion,
   } else {
     j->notes.push_back(
         fmt::format("motion centre kept off: only {:.2f} mm inside (medial r_max {:.2f} mm)",
-                    d / kMm, j->r_max / kMm));
+                    d / units::kMetresPerMillimetre, j->r_max / units::kMetresPerMillimetre));
   }
 }
 
@@ -202,13 +201,16 @@ Result<ArticulateResult> articulate(const SkinnedCharacter& c, const ArticulateO
       j.reason = fmt::format(
           "too thin: r_max {:.2f} mm leaves no room for a {} with {:.2f} mm "
           "clearance",
-          j.r_max / kMm, to_string(j.type), o.printer.clearance_m / kMm);
+          j.r_max / units::kMetresPerMillimetre, to_string(j.type),
+          o.printer.clearance_m / units::kMetresPerMillimetre);
     } else if (j.min_area < o.printer.min_area_m2) {
       j.excluded = true;
       j.reason = fmt::format(
           "too weak: best smallest cross-section {:.2f} mm^2 < A_min {:.2f} "
           "mm^2 (r_max {:.2f} mm)",
-          j.min_area / (kMm * kMm), o.printer.min_area_m2 / (kMm * kMm), j.r_max / kMm);
+          j.min_area / (units::kMetresPerMillimetre * units::kMetresPerMillimetre),
+          o.printer.min_area_m2 / (units::kMetresPerMillimetre * units::kMetresPerMillimetre),
+          j.r_max / units::kMetresPerMillimetre);
     }
   }
   exclude_unseparable_joints(contacts, static_cast<int>(c.bones.size()), &out.joints);

@@ -1,19 +1,19 @@
 #include "fabrication/articulation/joint.h"
+#include "common/units.h"
 
 #include <numbers>
 
 namespace hc::articulation {
-namespace {
-constexpr double kDeg = std::numbers::pi / 180;
-}  // namespace
-
 const char* to_string(JointType type) { return type == JointType::kBall ? "ball" : "hinge"; }
 
 const char* to_string(JointSource source) {
   switch (source) {
-    case JointSource::kDefault: return "default";
-    case JointSource::kAnimation: return "animation";
-    case JointSource::kUser: return "user";
+    case JointSource::kDefault:
+      return "default";
+    case JointSource::kAnimation:
+      return "animation";
+    case JointSource::kUser:
+      return "user";
   }
   return "default";
 }
@@ -34,12 +34,14 @@ Status JointOverride::read(ConfigNode node) {
   if (node.optional("type", t, {"ball", "hinge", "none"})) type = t;
   double angle = 0;
   if (node.optional("frame_angle_deg", angle, Bounds::between(-360, 360)))
-    frame_angle_rad = angle * kDeg;
+    frame_angle_rad = angle * units::kRadiansPerDegree;
   std::array<double, 2> pair{};
   if (node.optional("swing_deg", pair, Bounds::between(0, 170)))
-    swing_rad = std::array<double, 2>{pair[0] * kDeg, pair[1] * kDeg};
+    swing_rad = std::array<double, 2>{pair[0] * units::kRadiansPerDegree,
+                                      pair[1] * units::kRadiansPerDegree};
   if (node.optional("cone_deg", pair, Bounds::between(0, 80)))
-    cone_rad = std::array<double, 2>{pair[0] * kDeg, pair[1] * kDeg};
+    cone_rad = std::array<double, 2>{pair[0] * units::kRadiansPerDegree,
+                                     pair[1] * units::kRadiansPerDegree};
   if (type && *type == "ball" && swing_rad) node.error("swing_deg", "is for hinges, not balls");
   if (type && *type == "hinge" && cone_rad) node.error("cone_deg", "is for balls, not hinges");
   return node.status();

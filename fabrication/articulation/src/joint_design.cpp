@@ -12,7 +12,6 @@
 namespace hc::articulation {
 namespace {
 
-constexpr double kPi = std::numbers::pi;
 constexpr double kInfeasible = -std::numeric_limits<double>::infinity();
 
 // Max-min search over the unit box [0, 1]^N: a grid, then repeated zooms around the best point.
@@ -57,7 +56,7 @@ double clearance_angle(double d, double radius) { return std::asin(std::min(1.0,
 // Area of the part of a disc of radius rho beyond a chord at distance y0 from its centre.
 double disc_segment(double rho, double y0) {
   if (y0 >= rho) return 0.0;
-  if (y0 <= -rho) return kPi * rho * rho;
+  if (y0 <= -rho) return std::numbers::pi * rho * rho;
   return rho * rho * std::acos(y0 / rho) - y0 * std::sqrt(rho * rho - y0 * y0);
 }
 
@@ -88,17 +87,17 @@ std::array<double, 3> ball_socket_areas(double r_max, double r, double h, const 
   const double alpha = std::acos(std::clamp(h / rb, -1.0, 1.0));
   const double delta = clearance_angle(d, rb);
   const int n = options.theta_samples;
-  const double dtheta = 2 * kPi / n;
+  const double dtheta = 2 * std::numbers::pi / n;
   double a1 = 0.0, lip = 0.0;
   for (int i = 0; i < n; ++i) {
     const double psi = alpha + range.at((i + 0.5) * dtheta) + delta;
-    if (psi < kPi / 2) {
+    if (psi < std::numbers::pi / 2) {
       a1 += 0.5 * (r_max * r_max - r * r) * dtheta;
       // Eq. 6.6: the cone of half-angle psi meets the lip's cylinder at height r' / tan(psi).
       lip += std::clamp(rb / std::tan(psi) - s0, 0.0, h - s0) * dtheta;
     }
   }
-  return {a1, rb * lip, kPi * (rb * rb - h * h)};
+  return {a1, rb * lip, std::numbers::pi * (rb * rb - h * h)};
 }
 
 std::array<double, 3> hinge_areas(double r_max, double R, double r, double b,
@@ -107,12 +106,12 @@ std::array<double, 3> hinge_areas(double r_max, double R, double r, double b,
   const double knuckle = R - d;
   const double alpha = std::asin(std::clamp((knuckle - r) / knuckle, 0.0, 1.0));
   const double delta = clearance_angle(d, knuckle);
-  double a3 = kPi * r_max * r_max - 2 * b * (R - r + d);
+  double a3 = std::numbers::pi * r_max * r_max - 2 * b * (R - r + d);
   // A swing wedge reaching the axis plane removes the fork's disc beyond R - d on that side (the
   // strip of the slot there, b x d, was already counted).
   for (double swing : {range.forward, range.backward})
-    if (alpha + swing + delta >= kPi / 2) a3 -= disc_segment(r_max, knuckle) - b * d;
-  return {2 * kPi * (r - d) * (r - d), 2 * (b - 2 * d) * (knuckle - r), a3};
+    if (alpha + swing + delta >= std::numbers::pi / 2) a3 -= disc_segment(r_max, knuckle) - b * d;
+  return {2 * std::numbers::pi * (r - d) * (r - d), 2 * (b - 2 * d) * (knuckle - r), a3};
 }
 
 BallSocketDesign design_ball_socket(double r_max, const BallRange& range,
@@ -149,17 +148,17 @@ BallSocketDesign design_ball_socket(double r_max, const BallRange& range,
   out.min_area = std::min({out.areas[0], out.areas[1], out.areas[2]});
   for (int i = 0; i < options.theta_samples; ++i) {
     const double psi =
-        out.alpha + range.at((i + 0.5) * 2 * kPi / options.theta_samples) + out.delta;
-    const double top = psi < kPi / 2 ? std::clamp(out.ball_radius / std::tan(psi), out.s0, out.h)
-                                     : out.s0;
+        out.alpha + range.at((i + 0.5) * 2 * std::numbers::pi / options.theta_samples) + out.delta;
+    const double top = psi < std::numbers::pi / 2
+                           ? std::clamp(out.ball_radius / std::tan(psi), out.s0, out.h)
+                           : out.s0;
     out.opening_radius =
         std::max(out.opening_radius, std::sqrt(std::max(0.0, out.r * out.r - top * top)));
   }
   return out;
 }
 
-HingeDesign design_hinge(double r_max, const HingeRange& range,
-                         const JointDesignOptions& options) {
+HingeDesign design_hinge(double r_max, const HingeRange& range, const JointDesignOptions& options) {
   HingeDesign out;
   const double d = options.clearance_m;
   out.clearance = d;

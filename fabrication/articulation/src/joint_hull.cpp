@@ -16,7 +16,6 @@ namespace {
 
 using geometry::BooleanOperation;
 using geometry::CsgStep;
-constexpr double kPi = std::numbers::pi;
 // Fraction of a facet step the neck cone's generatrices are turned by: an irrational amount, so
 // they do not lie in the planes of a symmetric character's edges (a tube's edges through its axis
 // share every rational azimuth), which would leave slivers that rounding folds.
@@ -57,7 +56,6 @@ Result<TriangleMesh> without_fragments(const TriangleMesh& hull) {
 // Evaluates the hull's CSG in the joint's frame and moves it to the world.
 Result<TriangleMesh> evaluate(const TriangleMesh& base, std::vector<CsgStep> steps,
                               const LocalFrame& frame) {
-
   geometry::CsgOptions options;
   options.check_operands = false;  // primitives are closed and outward by construction
   geometry::CsgSummary summary;
@@ -90,18 +88,18 @@ Result<JointHull> ball_hull(const Joint& j, const HullOptions& o, const Depth& d
   // The socket's cut: the shell between half the neck's angle and psi (the part inside the neck
   // goes with the neck), its generatrices half a step away from the neck cone's so that no
   // vertex of one lies on an edge of the other.
-  steps.push_back(step(BooleanOperation::kUnion,
-                       cone_sector_mesh(psi, reach(m), o.segments, Facet::kCircumscribed,
-                                        s.alpha / 2, s.r / 2,
-                                        (kNeckPhase + 0.5) * 2 * kPi / o.segments),
-                       "socket cone"));
+  steps.push_back(
+      step(BooleanOperation::kUnion,
+           cone_sector_mesh(psi, reach(m), o.segments, Facet::kCircumscribed, s.alpha / 2, s.r / 2,
+                            (kNeckPhase + 0.5) * 2 * std::numbers::pi / o.segments),
+           "socket cone"));
   // Friction bumps on the ball's equator, three around n; dimples of r_b + d in the socket, when
   // they fit inside the inscribed sphere.
   std::vector<Eigen::Vector3d> bumps_local;
   const double rb = o.bump_radius_m;
   if (rb > 0 && s.ball_radius + rb + d < j.r_max) {
     for (int k = 0; k < 3; ++k) {
-      const double t = 2 * kPi * k / 3 + kPi / 6;
+      const double t = 2 * std::numbers::pi * k / 3 + std::numbers::pi / 6;
       bumps_local.emplace_back(s.ball_radius * std::sin(t), 0.0, s.ball_radius * std::cos(t));
     }
   }
@@ -114,7 +112,7 @@ Result<JointHull> ball_hull(const Joint& j, const HullOptions& o, const Depth& d
                        sphere_mesh(s.ball_radius, o.segments, Facet::kInscribed), "ball"));
   steps.push_back(step(BooleanOperation::kDifference,
                        cone_sector_mesh(alpha, reach(2 * m), o.segments, Facet::kInscribed, 0.0,
-                                        0.0, kNeckPhase * 2 * kPi / o.segments),
+                                        0.0, kNeckPhase * 2 * std::numbers::pi / o.segments),
                        "neck cone"));
   for (const Eigen::Vector3d& c : bumps_local) {
     steps.push_back(step(BooleanOperation::kDifference,
@@ -122,9 +120,8 @@ Result<JointHull> ball_hull(const Joint& j, const HullOptions& o, const Depth& d
     out.bumps.push_back(frame.origin + frame.axes * c);
   }
   out.bump_radius_m = bumps_local.empty() ? 0.0 : rb;
-  HC_ASSIGN_OR_RETURN(
-      out.hull,
-      evaluate(sphere_mesh(s.r, o.segments, Facet::kCircumscribed), std::move(steps), frame));
+  HC_ASSIGN_OR_RETURN(out.hull, evaluate(sphere_mesh(s.r, o.segments, Facet::kCircumscribed),
+                                         std::move(steps), frame));
   return out;
 }
 
@@ -133,8 +130,8 @@ Result<JointHull> hinge_hull(const Joint& j, const HullOptions& o, const Depth& 
   const LocalFrame frame = j.frame();
   const double d = o.clearance_m, m = o.reach_margin_m;
   JointHull out;
-  const double psi_f = std::min(h.alpha + j.swing.forward + h.delta, 0.97 * kPi);
-  const double psi_b = std::min(h.alpha + j.swing.backward + h.delta, 0.97 * kPi);
+  const double psi_f = std::min(h.alpha + j.swing.forward + h.delta, 0.97 * std::numbers::pi);
+  const double psi_b = std::min(h.alpha + j.swing.backward + h.delta, 0.97 * std::numbers::pi);
   // Where the ray from the axis at x in direction phi leaves the mesh.
   const auto exit_at = [&](double x, double phi) {
     return exit_distance(depth, j.centre + x * j.a, std::cos(phi) * j.n + std::sin(phi) * j.f());
@@ -178,7 +175,7 @@ Result<JointHull> hinge_hull(const Joint& j, const HullOptions& o, const Depth& 
     // mechanism's disc of radius r_max, as Fig. 6.4.9's area a3 assumes: the parent's body
     // behind it stays whole (followed to the exit, the wedge's side would split the parent's limb
     // lengthwise). Where the folded child then meets that body, the sweeps narrow the range.
-    if (std::abs(phi) > kPi / 2) t = std::min(t, j.r_max);
+    if (std::abs(phi) > std::numbers::pi / 2) t = std::min(t, j.r_max);
     return std::max(t, h.R) + m;
   };
   const auto body_reach = [&](double, double phi) {
@@ -200,8 +197,7 @@ Result<JointHull> hinge_hull(const Joint& j, const HullOptions& o, const Depth& 
   const double rb = o.bump_radius_m;
   const double rho = 0.5 * (h.r + h.R - d);
   if (rb > 0 && rb + d < 0.5 * (h.R - d - h.r)) {
-    for (double side : {-1.0, 1.0})
-      bumps_local.emplace_back(side * (h.b / 2 - d), -rho, 0.0);
+    for (double side : {-1.0, 1.0}) bumps_local.emplace_back(side * (h.b / 2 - d), -rho, 0.0);
   }
   for (const Eigen::Vector3d& c : bumps_local) {
     steps.push_back(step(BooleanOperation::kUnion,
@@ -212,10 +208,9 @@ Result<JointHull> hinge_hull(const Joint& j, const HullOptions& o, const Depth& 
   // reaches only into it, so their sides never coincide. Then the hole through the knuckle is
   // put back and the pin (r - d, into the cheeks) taken out: the gap around the pin.
   const double knuckle = h.b / 2 - d;
-  steps.push_back(step(BooleanOperation::kDifference,
-                       cylinder_mesh(h.R - d, -knuckle, knuckle, o.segments, Facet::kInscribed,
-                                     0.25),
-                       "knuckle"));
+  steps.push_back(step(
+      BooleanOperation::kDifference,
+      cylinder_mesh(h.R - d, -knuckle, knuckle, o.segments, Facet::kInscribed, 0.25), "knuckle"));
   const double neck_alpha = 0.998 * h.alpha;
   steps.push_back(step(BooleanOperation::kDifference,
                        sector_prism_mesh(0.0, h.R + d, -neck_alpha, neck_alpha, -knuckle, knuckle,
@@ -226,15 +221,13 @@ Result<JointHull> hinge_hull(const Joint& j, const HullOptions& o, const Depth& 
                                          half + m, stations, o.segments, Facet::kCircumscribed),
                        "child body"));
   const double hole_end = h.b / 2 - d / 2;
-  steps.push_back(step(BooleanOperation::kUnion,
-                       cylinder_mesh(h.r, -hole_end, hole_end, o.segments,
-                                     Facet::kCircumscribed, 0.75),
-                       "hole"));
+  steps.push_back(step(
+      BooleanOperation::kUnion,
+      cylinder_mesh(h.r, -hole_end, hole_end, o.segments, Facet::kCircumscribed, 0.75), "hole"));
   const double pin_end = h.b / 2 + d;
-  steps.push_back(step(BooleanOperation::kDifference,
-                       cylinder_mesh(h.r - d, -pin_end, pin_end, o.segments, Facet::kInscribed,
-                                     0.5),
-                       "pin"));
+  steps.push_back(
+      step(BooleanOperation::kDifference,
+           cylinder_mesh(h.r - d, -pin_end, pin_end, o.segments, Facet::kInscribed, 0.5), "pin"));
   for (const Eigen::Vector3d& c : bumps_local) {
     steps.push_back(step(BooleanOperation::kDifference,
                          small_sphere(rb, small - 2, Facet::kInscribed, c), "bump"));

@@ -8,8 +8,6 @@
 namespace hc::articulation {
 namespace {
 
-constexpr double kPi = std::numbers::pi;
-
 // Collects vertices and triangles, then packs them into a TriangleMesh.
 struct Builder {
   std::vector<Eigen::Vector3d> v;
@@ -34,14 +32,15 @@ struct Builder {
 };
 
 // Radius at which polygon vertices put every edge of a regular N-gon at distance >= r.
-double circumscribed(double r, int n) { return r / std::cos(kPi / n); }
+double circumscribed(double r, int n) { return r / std::cos(std::numbers::pi / n); }
 
 }  // namespace
 
 TriangleMesh transformed(const TriangleMesh& mesh, const LocalFrame& frame) {
   TriangleMesh out = mesh;
   for (Eigen::Index i = 0; i < out.num_vertices(); ++i)
-    out.vertices.row(i) = (frame.origin + frame.axes * mesh.vertices.row(i).transpose()).transpose();
+    out.vertices.row(i) =
+        (frame.origin + frame.axes * mesh.vertices.row(i).transpose()).transpose();
   return out;
 }
 
@@ -51,15 +50,16 @@ TriangleMesh sphere_mesh(double radius, int segments, Facet facet) {
   // the centre; scaling by its inverse puts every facet outside the sphere.
   const double rho = facet == Facet::kInscribed
                          ? radius
-                         : radius / (std::cos(kPi / segments) * std::cos(kPi / (2 * bands)));
+                         : radius / (std::cos(std::numbers::pi / segments) *
+                                     std::cos(std::numbers::pi / (2 * bands)));
   Builder b;
   const int south = b.add({0, 0, -rho});
   std::vector<std::vector<int>> rings;
   for (int i = 1; i < bands; ++i) {
-    const double lat = -kPi / 2 + kPi * i / bands;
+    const double lat = -std::numbers::pi / 2 + std::numbers::pi * i / bands;
     std::vector<int> ring;
     for (int j = 0; j < segments; ++j) {
-      const double lon = 2 * kPi * j / segments;
+      const double lon = 2 * std::numbers::pi * j / segments;
       ring.push_back(b.add(rho * Eigen::Vector3d(std::cos(lat) * std::cos(lon),
                                                  std::cos(lat) * std::sin(lon), std::sin(lat))));
     }
@@ -68,8 +68,10 @@ TriangleMesh sphere_mesh(double radius, int segments, Facet facet) {
   const int north = b.add({0, 0, rho});
   for (int j = 0; j < segments; ++j) {
     const int j1 = (j + 1) % segments;
-    b.tri(south, rings.front()[static_cast<std::size_t>(j1)], rings.front()[static_cast<std::size_t>(j)]);
-    b.tri(north, rings.back()[static_cast<std::size_t>(j)], rings.back()[static_cast<std::size_t>(j1)]);
+    b.tri(south, rings.front()[static_cast<std::size_t>(j1)],
+          rings.front()[static_cast<std::size_t>(j)]);
+    b.tri(north, rings.back()[static_cast<std::size_t>(j)],
+          rings.back()[static_cast<std::size_t>(j1)]);
     for (std::size_t i = 0; i + 1 < rings.size(); ++i)
       b.quad(rings[i][static_cast<std::size_t>(j)], rings[i][static_cast<std::size_t>(j1)],
              rings[i + 1][static_cast<std::size_t>(j1)], rings[i + 1][static_cast<std::size_t>(j)]);
@@ -87,20 +89,20 @@ TriangleMesh cone_sector_mesh(const std::function<double(double)>& psi,
     return Eigen::Vector3d(std::sin(beta) * std::sin(theta), std::cos(beta),
                            std::sin(beta) * std::cos(theta));
   };
-  const auto theta_of = [&](int j) { return 2 * kPi * j / segments + theta_offset; };
+  const auto theta_of = [&](int j) { return 2 * std::numbers::pi * j / segments + theta_offset; };
   std::vector<double> angle(static_cast<std::size_t>(segments));
   double widest = 0.0;
   for (int j = 0; j < segments; ++j) {
     double a = psi(theta_of(j));
     // The polygonal cone through generatrices at psi lies inside the true cone for psi < 90 deg;
     // widening tan(psi) by 1 / cos(pi / N) puts it outside.
-    if (facet == Facet::kCircumscribed && a < kPi / 2)
-      a = std::atan(std::tan(a) / std::cos(kPi / segments));
-    angle[static_cast<std::size_t>(j)] = std::clamp(a, inner + 1e-3, kPi - 1e-3);
+    if (facet == Facet::kCircumscribed && a < std::numbers::pi / 2)
+      a = std::atan(std::tan(a) / std::cos(std::numbers::pi / segments));
+    angle[static_cast<std::size_t>(j)] = std::clamp(a, inner + 1e-3, std::numbers::pi - 1e-3);
     widest = std::max(widest, angle[static_cast<std::size_t>(j)]);
   }
-  const int rings =
-      std::max(2, static_cast<int>(std::ceil((widest - inner) / (2 * kPi / segments))));
+  const int rings = std::max(
+      2, static_cast<int>(std::ceil((widest - inner) / (2 * std::numbers::pi / segments))));
   // Rings from the pole (or a shell's inner cone) out to psi, on the cap at reach(direction).
   const bool shell = inner > 0;
   std::vector<std::vector<int>> far, close;
@@ -130,7 +132,8 @@ TriangleMesh cone_sector_mesh(const std::function<double(double)>& psi,
     const int apex = b.add({0, 0, 0});
     const int pole = b.add(reach(Eigen::Vector3d::UnitY()) * Eigen::Vector3d::UnitY());
     for (int j = 0; j < segments; ++j) {
-      const auto j0 = static_cast<std::size_t>(j), j1 = static_cast<std::size_t>((j + 1) % segments);
+      const auto j0 = static_cast<std::size_t>(j),
+                 j1 = static_cast<std::size_t>((j + 1) % segments);
       b.tri(pole, far.front()[j0], far.front()[j1]);
       b.tri(apex, far.back()[j1], far.back()[j0]);
     }
@@ -144,7 +147,7 @@ TriangleMesh cylinder_mesh(double radius, double x0, double x1, int segments, Fa
   Builder b;
   std::vector<int> lo, hi;
   for (int j = 0; j < segments; ++j) {
-    const double a = 2 * kPi * (j + phase) / segments;
+    const double a = 2 * std::numbers::pi * (j + phase) / segments;
     lo.push_back(b.add({x0, rho * std::cos(a), rho * std::sin(a)}));
     hi.push_back(b.add({x1, rho * std::cos(a), rho * std::sin(a)}));
   }
@@ -159,8 +162,8 @@ TriangleMesh cylinder_mesh(double radius, double x0, double x1, int segments, Fa
 }
 
 double sector_step(double phi0, double phi1, int segments_per_turn) {
-  const int n =
-      std::max(1, static_cast<int>(std::ceil((phi1 - phi0) / (2 * kPi) * segments_per_turn)));
+  const int n = std::max(
+      1, static_cast<int>(std::ceil((phi1 - phi0) / (2 * std::numbers::pi) * segments_per_turn)));
   return (phi1 - phi0) / n;
 }
 
@@ -194,8 +197,8 @@ TriangleMesh sector_prism_mesh(double r0, const std::function<double(double, dou
     const auto& i1 = in[static_cast<std::size_t>(s) + 1];
     for (int k = 0; k < n; ++k) {
       const auto a = static_cast<std::size_t>(k), c = static_cast<std::size_t>(k + 1);
-      b.quad(o0[a], o0[c], o1[c], o1[a]);                  // outer surface
-      if (r0 > 0) b.quad(i0[a], i1[a], i1[c], i0[c]);      // inner arc, facing the axis
+      b.quad(o0[a], o0[c], o1[c], o1[a]);              // outer surface
+      if (r0 > 0) b.quad(i0[a], i1[a], i1[c], i0[c]);  // inner arc, facing the axis
     }
     // Radial sides at phi0 (facing -phi) and phi1.
     b.quad(i0.front(), o0.front(), o1.front(), i1.front());

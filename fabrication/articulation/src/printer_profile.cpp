@@ -1,4 +1,5 @@
 #include "fabrication/articulation/printer_profile.h"
+#include "common/units.h"
 
 #include <fmt/format.h>
 
@@ -6,12 +7,7 @@
 #include <numbers>
 
 namespace hc::articulation {
-namespace {
-
-constexpr double kMm = 1e-3;
-constexpr double kDeg = std::numbers::pi / 180;
-
-}  // namespace
+namespace {}  // namespace
 
 Result<PrinterProfile> builtin_printer_profile(const std::string& name) {
   PrinterProfile p;  // PolyJet (Objet Connex 500, VeroClear): the thesis's measured values
@@ -20,9 +16,9 @@ Result<PrinterProfile> builtin_printer_profile(const std::string& name) {
     // The issue's ~0.25 mm clearance; standard SLA resins are about as strong as VeroClear
     // (tensile ~50-65 MPa), so A_min stays 10 mm^2; bumps scaled with the clearance.
     p.name = "sla";
-    p.clearance_m = 0.25 * kMm;
-    p.bump_radius_m = 0.6 * kMm;
-    p.wrap_alpha_m = 0.4 * kMm;
+    p.clearance_m = 0.25 * units::kMetresPerMillimetre;
+    p.bump_radius_m = 0.6 * units::kMetresPerMillimetre;
+    p.wrap_alpha_m = 0.4 * units::kMetresPerMillimetre;
     return p;
   }
   if (name == "fdm") {
@@ -30,12 +26,12 @@ Result<PrinterProfile> builtin_printer_profile(const std::string& name) {
     // of the filament, so A_min is raised to 15 mm^2 (an assumption, not measured); bumps of two
     // lines; the wrap keeps features of two lines (0.8 mm).
     p.name = "fdm";
-    p.clearance_m = 0.4 * kMm;
+    p.clearance_m = 0.4 * units::kMetresPerMillimetre;
     p.min_area_m2 = 15e-6;
-    p.bump_radius_m = 0.8 * kMm;
-    p.wrap_alpha_m = 0.8 * kMm;
+    p.bump_radius_m = 0.8 * units::kMetresPerMillimetre;
+    p.wrap_alpha_m = 0.8 * units::kMetresPerMillimetre;
     p.pins_upright = true;
-    p.max_overhang_rad = 45 * kDeg;
+    p.max_overhang_rad = 45 * units::kRadiansPerDegree;
     return p;
   }
   return invalid_argument(
@@ -48,10 +44,13 @@ Status PrinterProfile::read(ConfigNode node) {
   if (Result<PrinterProfile> b = builtin_printer_profile(base); b.ok()) *this = *b;
   name = base;
   node.optional("name", name);
-  double clearance_mm = clearance_m / kMm, area_mm2 = min_area_m2 / (kMm * kMm);
-  double bump_mm = bump_radius_m / kMm, cone_deg = default_cone_rad / kDeg;
-  double swing_deg = default_swing_rad / kDeg, alpha_mm = wrap_alpha_m / kMm;
-  double overhang_deg = max_overhang_rad / kDeg;
+  double clearance_mm = clearance_m / units::kMetresPerMillimetre,
+         area_mm2 = min_area_m2 / (units::kMetresPerMillimetre * units::kMetresPerMillimetre);
+  double bump_mm = bump_radius_m / units::kMetresPerMillimetre,
+         cone_deg = default_cone_rad / units::kRadiansPerDegree;
+  double swing_deg = default_swing_rad / units::kRadiansPerDegree,
+         alpha_mm = wrap_alpha_m / units::kMetresPerMillimetre;
+  double overhang_deg = max_overhang_rad / units::kRadiansPerDegree;
   node.optional("clearance_mm", clearance_mm, Bounds::positive());
   node.optional("min_area_mm2", area_mm2, Bounds::positive());
   node.optional("bump_radius_mm", bump_mm, Bounds::non_negative());
@@ -60,13 +59,13 @@ Status PrinterProfile::read(ConfigNode node) {
   node.optional("wrap_alpha_mm", alpha_mm, Bounds::positive());
   node.optional("pins_upright", pins_upright);
   node.optional("max_overhang_deg", overhang_deg, Bounds::between(30, 90));
-  clearance_m = clearance_mm * kMm;
-  min_area_m2 = area_mm2 * kMm * kMm;
-  bump_radius_m = bump_mm * kMm;
-  default_cone_rad = cone_deg * kDeg;
-  default_swing_rad = swing_deg * kDeg;
-  wrap_alpha_m = alpha_mm * kMm;
-  max_overhang_rad = overhang_deg * kDeg;
+  clearance_m = clearance_mm * units::kMetresPerMillimetre;
+  min_area_m2 = area_mm2 * units::kMetresPerMillimetre * units::kMetresPerMillimetre;
+  bump_radius_m = bump_mm * units::kMetresPerMillimetre;
+  default_cone_rad = cone_deg * units::kRadiansPerDegree;
+  default_swing_rad = swing_deg * units::kRadiansPerDegree;
+  wrap_alpha_m = alpha_mm * units::kMetresPerMillimetre;
+  max_overhang_rad = overhang_deg * units::kRadiansPerDegree;
   return node.status();
 }
 
@@ -76,7 +75,7 @@ Status PrinterProfile::validate() const {
   if (bump_radius_m > 0 && bump_radius_m <= clearance_m)
     return invalid_argument(fmt::format(
         "bump_radius_mm ({:g}) must exceed clearance_mm ({:g}) for the bumps to grip, or be 0",
-        bump_radius_m / kMm, clearance_m / kMm));
+        bump_radius_m / units::kMetresPerMillimetre, clearance_m / units::kMetresPerMillimetre));
   return {};
 }
 

@@ -14,8 +14,6 @@
 namespace hc::articulation {
 namespace {
 
-constexpr double kPi = std::numbers::pi;
-
 TriangleMesh moved(const TriangleMesh& m, const Eigen::Isometry3d& t) {
   TriangleMesh out = m;
   for (Eigen::Index v = 0; v < out.num_vertices(); ++v)
@@ -84,13 +82,13 @@ std::vector<Eigen::Matrix3d> sweep_rotations(const Joint& j, double step) {
     return out;
   }
   for (int k = 0; k < 8; ++k) {
-    const double theta = 2 * kPi * k / 8;
+    const double theta = 2 * std::numbers::pi * k / 8;
     const Eigen::Vector3d dir = std::cos(theta) * j.f() + std::sin(theta) * j.a;
     const Eigen::Vector3d axis = j.n.cross(dir).normalized();
     for (double frac : {0.5, 1.0})
       out.push_back(Eigen::AngleAxisd(frac * j.cone.at(theta), axis).toRotationMatrix());
   }
-  for (double twist : {-kPi / 4, kPi / 4})
+  for (double twist : {-std::numbers::pi / 4, std::numbers::pi / 4})
     out.push_back(Eigen::AngleAxisd(twist, j.n).toRotationMatrix());
   return out;
 }

@@ -53,13 +53,14 @@ Result<LmResult> levenberg_marquardt(std::vector<FitExample>& examples, BaseMate
                                      const BaseFitOptions& options) {
   const Eigen::Index p = material->num_centres();
   const Eigen::Index k = parameter_count(material->model());
-  const auto stack = [&](bool jacobian, Eigen::VectorXd* r, Eigen::MatrixXd* j) -> Status {
+  // The stacked residuals, and the Jacobian when j is given.
+  const auto stack = [&](Eigen::VectorXd* r, Eigen::MatrixXd* j) -> Status {
     std::vector<Status> st(examples.size());
     std::vector<Eigen::VectorXd> rs(examples.size());
     std::vector<Eigen::MatrixXd> js(examples.size());
     tbb::parallel_for(std::size_t{0}, examples.size(), [&](std::size_t i) {
       st[i] = examples[i].residual(*material, &rs[i]);
-      if (st[i].ok() && jacobian) st[i] = examples[i].jacobian(*material, &js[i]);
+      if (st[i].ok() && j != nullptr) st[i] = examples[i].jacobian(*material, &js[i]);
     });
     Eigen::Index rows = 0;
     for (std::size_t i = 0; i < examples.size(); ++i) {
@@ -67,18 +68,18 @@ Result<LmResult> levenberg_marquardt(std::vector<FitExample>& examples, BaseMate
       rows += rs[i].size();
     }
     r->resize(rows);
-    if (jacobian) j->resize(rows, p * k);
+    if (j != nullptr) j->resize(rows, p * k);
     Eigen::Index at = 0;
     for (std::size_t i = 0; i < examples.size(); ++i) {
       r->segment(at, rs[i].size()) = rs[i];
-      if (jacobian) j->middleRows(at, rs[i].size()) = js[i];
+      if (j != nullptr) j->middleRows(at, rs[i].size()) = js[i];
       at += rs[i].size();
     }
     return {};
   };
   Eigen::VectorXd r;
   Eigen::MatrixXd jac;
-  HC_RETURN_IF_ERROR(stack(true, &r, &jac));
+  HC_RETURN_IF_ERROR(stack(&r, &jac));
   LmResult out;
   out.cost = 0.5 * r.squaredNorm();
   double damping = kLmInitialDamping;
@@ -95,7 +96,7 @@ Result<LmResult> levenberg_marquardt(std::vector<FitExample>& examples, BaseMate
       BaseMaterial trial = material->with_values(unflatten(x, p, k));
       std::swap(*material, trial);
       Eigen::VectorXd r2;
-      const Status st = stack(false, &r2, nullptr);
+      const Status st = stack(&r2, nullptr);
       const double cost = st.ok() ? 0.5 * r2.squaredNorm() : std::numeric_limits<double>::max();
       if (cost < out.cost) {
         const double decrease = (out.cost - cost) / out.cost;
@@ -104,7 +105,7 @@ Result<LmResult> levenberg_marquardt(std::vector<FitExample>& examples, BaseMate
         accepted = true;
         ++out.iterations;
         if (decrease < options.function_tolerance) return out;
-        HC_RETURN_IF_ERROR(stack(true, &r, &jac));
+        HC_RETURN_IF_ERROR(stack(&r, &jac));
         break;
       }
       std::swap(*material, trial);  // reject: back to the previous values
@@ -113,7 +114,7 @@ Result<LmResult> levenberg_marquardt(std::vector<FitExample>& examples, BaseMate
     if (!accepted) break;  // no step lowers the cost: converged to the damping's resolution
   }
   // Leave every example solved at the final values (the Jacobian pass above may be stale).
-  HC_RETURN_IF_ERROR(stack(false, &r, nullptr));
+  HC_RETURN_IF_ERROR(stack(&r, nullptr));
   return out;
 }
 
@@ -129,10 +130,9 @@ Eigen::MatrixXd select_centres(BaseModel model, const std::vector<FitExample>& e
   for (std::size_t i = 0; i < pts.size(); ++i) norms[i] = pts[i].norm();
   std::vector<double> sorted = norms;
   std::sort(sorted.begin(), sorted.end());
-  const double cut =
-      sorted.empty() ? 0.0
-                     : sorted[static_cast<std::size_t>(
-                           std::floor((1.0 - outlier_fraction) * (sorted.size() - 1)))];
+  const double cut = sorted.empty() ? 0.0
+                                    : sorted[static_cast<std::size_t>(std::floor(
+                                          (1.0 - outlier_fraction) * (sorted.size() - 1)))];
   std::vector<Eigen::VectorXd> candidates;
   for (std::size_t i = 0; i < pts.size(); ++i)
     if (norms[i] <= cut) candidates.push_back(pts[i]);
@@ -160,9 +160,9 @@ Result<Eigen::VectorXd> stiffness_guess(BaseModel model, std::vector<FitExample>
   constexpr double kPoisson = 0.3;
   Eigen::VectorXd unit(2);
   unit << kPoisson / ((1 + kPoisson) * (1 - 2 * kPoisson)), 0.5 / (1 + kPoisson);  // E = 1 Pa
-  HC_ASSIGN_OR_RETURN(BaseMaterial m, BaseMaterial::create(BaseModel::kIsotropic,
-                                                           Eigen::MatrixXd::Zero(1, 3),
-                                                           unit.transpose(), FeasibilityLimits{}));
+  HC_ASSIGN_OR_RETURN(BaseMaterial m,
+                      BaseMaterial::create(BaseModel::kIsotropic, Eigen::MatrixXd::Zero(1, 3),
+                                           unit.transpose(), FeasibilityLimits{}));
   double uu = 0, um = 0;
   for (FitExample& ex : examples) {
     HC_ASSIGN_OR_RETURN(const auto dots, ex.unit_displacement_dots(m));
@@ -188,7 +188,8 @@ double floor_modulus(BaseModel model, const Eigen::VectorXd& p) {
   }
   Eigen::Matrix2d m;
   m << p(0) + p(1), 1.4142135623730951 * p(2), 1.4142135623730951 * p(2), p(3);
-  return std::min({p(0) - p(1), p(4), Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d>(m).eigenvalues().minCoeff()});
+  return std::min({p(0) - p(1), p(4),
+                   Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d>(m).eigenvalues().minCoeff()});
 }
 
 Status simulate_state(std::vector<FitExample>& examples, const BaseMaterial& material) {
@@ -206,8 +207,7 @@ Status BaseFitOptions::validate() const {
   if (passes < 1) return invalid_argument(fmt::format("passes must be >= 1, got {}", passes));
   if (max_iterations < 1)
     return invalid_argument(fmt::format("max_iterations must be >= 1, got {}", max_iterations));
-  if (!(function_tolerance > 0))
-    return invalid_argument("function_tolerance must be > 0");
+  if (!(function_tolerance > 0)) return invalid_argument("function_tolerance must be > 0");
   if (!(outlier_fraction >= 0 && outlier_fraction < 0.5))
     return invalid_argument(
         fmt::format("outlier_fraction must be in [0, 0.5), got {}", outlier_fraction));
@@ -235,7 +235,8 @@ std::vector<ForceLevelError> force_level_errors(const material::Samples& samples
         ex.probe.shape == "none" ? total.norm() : std::abs(total.dot(ex.probe.direction));
     items.push_back({force, i});
   }
-  std::sort(items.begin(), items.end(), [](const Item& a, const Item& b) { return a.force < b.force; });
+  std::sort(items.begin(), items.end(),
+            [](const Item& a, const Item& b) { return a.force < b.force; });
   std::vector<ForceLevelError> out;
   std::size_t start = 0;
   while (start < items.size()) {
@@ -274,8 +275,8 @@ Result<BaseEvaluation> evaluate_base_material(const BaseMaterial& material,
                                               const ForwardOptions& options) {
   HC_RETURN_IF_ERROR(material::validate_samples(samples));
   HC_ASSIGN_OR_RETURN(ExampleSimulator sim, ExampleSimulator::create(samples, options));
-  const CompositeMaterial composite(
-      std::vector<const BaseMaterial*>(static_cast<std::size_t>(samples.mesh.num_tets()), &material));
+  const CompositeMaterial composite(std::vector<const BaseMaterial*>(
+      static_cast<std::size_t>(samples.mesh.num_tets()), &material));
   BaseEvaluation out;
   HC_ASSIGN_OR_RETURN(out.positions, sim.simulate_all(composite, &out.rms_error_m));
   for (std::size_t i = 0; i < out.positions.size(); ++i)
@@ -293,12 +294,11 @@ Result<BaseMaterial> fit_base_material(const std::vector<const material::Samples
   if (samples.empty()) return invalid_argument("fit base: no samples");
   std::vector<FitExample> examples;
   for (std::size_t s = 0; s < samples.size(); ++s) {
-    HC_RETURN_IF_ERROR(material::validate_samples(*samples[s]).with_context(
-        fmt::format("samples {}", s)));
+    HC_RETURN_IF_ERROR(
+        material::validate_samples(*samples[s]).with_context(fmt::format("samples {}", s)));
     for (std::size_t i = 0; i < samples[s]->examples.size(); ++i) {
       Result<FitExample> ex = FitExample::create(*samples[s], i, options.model, options.forward);
-      if (!ex.ok())
-        return ex.status().with_context(fmt::format("samples {}, examples[{}]", s, i));
+      if (!ex.ok()) return ex.status().with_context(fmt::format("samples {}, examples[{}]", s, i));
       examples.push_back(std::move(ex).value());
     }
   }

@@ -1,4 +1,5 @@
 #include "processing/fem/verification.h"
+#include "common/clock.h"
 
 #include <algorithm>
 #include <chrono>
@@ -28,10 +29,6 @@ std::vector<double> graded_steps(double length, double h_min, double growth) {
   }
   for (double& s : steps) s *= length / sum;
   return steps;
-}
-
-double seconds_since(std::chrono::steady_clock::time_point t0) {
-  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
 }
 
 // Deterministic uniform numbers in [-1, 1] (splitmix64), identical on every platform.

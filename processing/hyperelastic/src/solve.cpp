@@ -8,18 +8,15 @@
 #include <cmath>
 #include <limits>
 
+#include "common/clock.h"
 #include "processing/hyperelastic/neo_hookean.h"
 
 namespace hc::hyperelastic {
 namespace {
 
-constexpr double kInf = std::numeric_limits<double>::infinity();
+constexpr double kNoEnergy = std::numeric_limits<double>::infinity();
 
 using Clock = std::chrono::steady_clock;
-double seconds_since(Clock::time_point t) {
-  return std::chrono::duration<double>(Clock::now() - t).count();
-}
-
 // Total potential Π = elastic − fᵀx + Σ contact, its gradient and (optionally) the Hessian.
 struct Potential {
   const NeoHookeanModel& model;
@@ -28,7 +25,7 @@ struct Potential {
   double value(const Eigen::VectorXd& x, Eigen::VectorXd* g, Eigen::SparseMatrix<double>* H,
                bool project, double* elastic_scale) const {
     double e = model.energy_gradient_hessian(x, g, H, project);
-    if (!std::isfinite(e)) return kInf;
+    if (!std::isfinite(e)) return kNoEnergy;
     if (elastic_scale != nullptr) *elastic_scale = g->cwiseAbs().maxCoeff();
     if (boundary.external_forces_n.size() > 0) {
       e -= boundary.external_forces_n.dot(x);
@@ -330,7 +327,7 @@ Status indent(const NeoHookeanModel& model, const Boundary& boundary, RigidProbe
       // while there is no contact yet.
       const double target = options.force_n * i / options.steps;
       double lo_d = depth, lo_f = force;
-      double hi_d = kInf, hi_f = kInf;
+      double hi_d = kNoEnergy, hi_f = kNoEnergy;
       double prev_d = depth, prev_f = force;  // the evaluation before the last, for the secant
       Eigen::VectorXd x_lo = *x;
       double trial = stiffness > 0 ? (target - force) / stiffness : 1e-3 * size;
@@ -345,7 +342,7 @@ Status indent(const NeoHookeanModel& model, const Boundary& boundary, RigidProbe
           return fail(f1.status());
         if (!f1.ok()) {  // no equilibrium this deep: an upper bound of unknown force
           hi_d = d1;
-          hi_f = kInf;
+          hi_f = kNoEnergy;
           d1 = 0.5 * (lo_d + hi_d);
           continue;
         }

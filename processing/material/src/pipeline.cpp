@@ -11,6 +11,7 @@
 #include <mutex>
 #include <optional>
 
+#include "common/clock.h"
 #include "processing/fem/blas_threads.h"
 #include "processing/fem/incremental.h"
 #include "processing/material/fit.h"
@@ -19,9 +20,6 @@
 namespace hc::material {
 namespace {
 using Clock = std::chrono::steady_clock;
-double seconds_since(Clock::time_point t0) {
-  return std::chrono::duration<double>(Clock::now() - t0).count();
-}
 }  // namespace
 
 Status HeterogeneousFitOptions::validate() const {
@@ -52,8 +50,7 @@ Result<Material> fit_heterogeneous(const Samples& samples, const HeterogeneousFi
         if (ex.visible[k] &&
             !std::binary_search(ex.fixed_nodes.begin(), ex.fixed_nodes.end(), static_cast<int>(k)))
           rows += 3;
-    const double bytes =
-        8.0 * rows * options.joint.parameters_per_tet() * static_cast<double>(t);
+    const double bytes = 8.0 * rows * options.joint.parameters_per_tet() * static_cast<double>(t);
     if (bytes > options.joint.max_jacobian_bytes)
       return failed_precondition(fmt::format(
           "joint material fit: its dense Jacobian would take {:.1f} GB (limit {:.1f} GB); use "

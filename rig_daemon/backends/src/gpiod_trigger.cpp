@@ -21,18 +21,13 @@
 #include <thread>
 
 #include "backend_factories.h"
+#include "common/clock.h"
 
 namespace hc::rig {
 namespace {
 
 using devices::PulseTrain;
 using devices::TriggerEdge;
-
-std::int64_t monotonic_ns() {
-  timespec ts{};
-  ::clock_gettime(CLOCK_MONOTONIC, &ts);
-  return static_cast<std::int64_t>(ts.tv_sec) * 1'000'000'000 + ts.tv_nsec;
-}
 
 void sleep_until(std::int64_t t_ns) {
   timespec ts{static_cast<time_t>(t_ns / 1'000'000'000), static_cast<long>(t_ns % 1'000'000'000)};

@@ -1,4 +1,5 @@
 #include "rig_daemon/backends/netft_client.h"
+#include "common/clock.h"
 
 #include <arpa/inet.h>
 #include <netinet/in.h>
@@ -12,12 +13,6 @@
 
 namespace hc::rig {
 namespace {
-
-std::int64_t monotonic_ns() {
-  timespec ts{};
-  ::clock_gettime(CLOCK_MONOTONIC, &ts);
-  return static_cast<std::int64_t>(ts.tv_sec) * 1'000'000'000 + ts.tv_nsec;
-}
 
 std::string errno_text(const char* what) { return std::string(what) + ": " + std::strerror(errno); }
 

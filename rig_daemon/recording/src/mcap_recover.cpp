@@ -18,7 +18,6 @@
 namespace hc::recording {
 namespace {
 
-constexpr std::uint8_t op(Opcode o) { return static_cast<std::uint8_t>(o); }
 constexpr std::uint64_t kMaxHeaderBytes = std::uint64_t{1} << 20;
 
 // The records of a chunk whose CRC, decompression and record framing all check; false (and
@@ -38,7 +37,8 @@ bool chunk_records(ByteSpan content, std::uint64_t max_chunk_bytes, Bytes& data,
   while (pos < data.size()) {
     auto rec = next_record(ByteSpan(data).subspan(static_cast<std::size_t>(pos)), pos);
     if (!rec.ok()) break;
-    if (rec->opcode == op(Opcode::kMessage) && !decode_message_view(rec->content).ok()) break;
+    if (rec->opcode == opcode_byte(Opcode::kMessage) && !decode_message_view(rec->content).ok())
+      break;
     records.push_back(*rec);
     pos += rec->size;
   }
@@ -52,10 +52,10 @@ struct Definitions {
   std::map<std::uint16_t, Schema> schemas;
   std::map<std::uint16_t, Channel> channels;
   void learn(std::uint8_t opcode, ByteSpan content) {
-    if (opcode == op(Opcode::kSchema)) {
+    if (opcode == opcode_byte(Opcode::kSchema)) {
       auto s = decode_schema(content);
       if (s.ok() && s->id != 0) schemas.try_emplace(s->id, std::move(s).value());
-    } else if (opcode == op(Opcode::kChannel)) {
+    } else if (opcode == opcode_byte(Opcode::kChannel)) {
       auto c = decode_channel(content);
       if (c.ok()) channels.try_emplace(c->id, std::move(c).value());
     }
@@ -74,7 +74,7 @@ Status check_mcap_start(const std::filesystem::path& input) {
   if (n < kMagic.size() || !std::equal(kMagic.begin(), kMagic.end(), start.begin()))
     return invalid_argument(
         fmt::format("recover: {}: offset 0: not an MCAP file (bad magic)", input.string()));
-  if (n > kMagic.size() && start[8] != op(Opcode::kHeader))
+  if (n > kMagic.size() && start[8] != opcode_byte(Opcode::kHeader))
     return invalid_argument(fmt::format(
         "recover: {}: offset 8: not an MCAP file (the first record is opcode 0x{:02x}, not a "
         "Header)",
@@ -100,12 +100,12 @@ Result<Definitions> collect_definitions(const std::filesystem::path& input,
   Result<LinearScanResult> scan = scan_records(input, [&](const LinearRecord& r) -> Status {
     if (first) {
       first = false;
-      if (r.opcode != op(Opcode::kHeader) || !decode_header(r.content).ok())
+      if (r.opcode != opcode_byte(Opcode::kHeader) || !decode_header(r.content).ok())
         return invalid_argument(fmt::format(
             "recover: {}: offset {}: not an MCAP file (its Header record does not decode)",
             input.string(), r.offset));
     }
-    if (r.opcode == op(Opcode::kChunk)) {
+    if (r.opcode == opcode_byte(Opcode::kChunk)) {
       if (chunk_records(r.content, max_chunk_bytes, data, inner))
         for (const RecordView& rec : inner) defs.learn(rec.opcode, rec.content);
       return {};
@@ -207,7 +207,8 @@ Result<RecoverReport> recover(const std::filesystem::path& input,
           return {};
         }
         for (const RecordView& rec : inner)
-          if (rec.opcode == op(Opcode::kMessage)) HC_RETURN_IF_ERROR(write_message(rec.content));
+          if (rec.opcode == opcode_byte(Opcode::kMessage))
+            HC_RETURN_IF_ERROR(write_message(rec.content));
         ++rep.chunks_kept;
         return {};
       }
@@ -250,7 +251,8 @@ Result<RecoverReport> recover(const std::filesystem::path& input,
       return known.status();
     }
   }
-  if (scan->truncated && scan->truncated_opcode == op(Opcode::kChunk)) ++rep.chunks_dropped;
+  if (scan->truncated && scan->truncated_opcode == opcode_byte(Opcode::kChunk))
+    ++rep.chunks_dropped;
   rep.input_bytes_used = scan->end_offset;
   rep.input_was_complete = scan->reached_footer;
   rep.stop_reason = scan->stop_reason;

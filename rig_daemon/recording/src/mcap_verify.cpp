@@ -22,8 +22,6 @@ std::uint32_t crc_record(std::uint32_t state, const LinearRecord& r) {
   return crc32_update(state, r.content);
 }
 
-constexpr std::uint8_t op(Opcode o) { return static_cast<std::uint8_t>(o); }
-
 // Everything verify learns about one Chunk and the MessageIndex records after it.
 struct ChunkSeen {
   std::uint64_t offset = 0;
@@ -312,11 +310,11 @@ bool Verifier::check_chunk_records(std::uint64_t off, const ChunkView& cv, const
       problem(off, "inside Chunk: " + rec.status().message());
       return false;
     }
-    if (rec->opcode == op(Opcode::kSchema)) {
+    if (rec->opcode == opcode_byte(Opcode::kSchema)) {
       define_schema(schemas_, rec->content, off);
-    } else if (rec->opcode == op(Opcode::kChannel)) {
+    } else if (rec->opcode == opcode_byte(Opcode::kChannel)) {
       define_channel(channels_, rec->content, off, schemas_);
-    } else if (rec->opcode == op(Opcode::kMessage)) {
+    } else if (rec->opcode == opcode_byte(Opcode::kMessage)) {
       auto m = decode_message_view(rec->content);
       if (!m.ok()) {
         problem(off, "inside Chunk at " + std::to_string(pos) + ": " + m.status().message());
@@ -468,12 +466,12 @@ void Verifier::check_footer() {
   // The summary section is the records before the first SummaryOffset.
   std::uint64_t first_so = 0;
   for (const auto& [off, opc, len] : summary_records_)
-    if (opc == op(Opcode::kSummaryOffset)) {
+    if (opc == opcode_byte(Opcode::kSummaryOffset)) {
       first_so = off;
       break;
     }
-  const bool only_offsets = !summary_records_.empty() &&
-                            std::get<1>(summary_records_.front()) == op(Opcode::kSummaryOffset);
+  const bool only_offsets = !summary_records_.empty() && std::get<1>(summary_records_.front()) ==
+                                                             opcode_byte(Opcode::kSummaryOffset);
   if (footer_->summary_start != (only_offsets ? 0 : expect_start))
     problem(footer_offset_, fmt::format("Footer: summary_start {} but the summary starts at {}",
                                         footer_->summary_start, only_offsets ? 0 : expect_start));

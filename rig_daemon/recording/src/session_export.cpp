@@ -158,7 +158,7 @@ Status export_json_csv(const McapReader& reader, const ReadOptions& ro,
   HC_RETURN_IF_ERROR(err);
   // Pass 2: the rows.
   std::string csv = "log_time_ns,publish_time_ns,sequence";
-  for (const auto& c : columns) csv += "," + csv_cell(c);
+  for (const auto& c : columns) csv.append(",").append(csv_cell(c));
   csv += "\n";
   std::vector<std::string> cells(columns.size());
   HC_RETURN_IF_ERROR(reader.read_messages(ro, [&](const MessageEvent& e) {
@@ -169,7 +169,7 @@ Status export_json_csv(const McapReader& reader, const ReadOptions& ro,
     std::fill(cells.begin(), cells.end(), std::string());
     for (const auto& [k, v] : flat) cells[column_of.at(k)] = v;
     csv += fmt::format("{},{},{}", e.message.log_time, e.message.publish_time, e.message.sequence);
-    for (const auto& c : cells) csv += "," + csv_cell(c);
+    for (const auto& c : cells) csv.append(",").append(csv_cell(c));
     csv += "\n";
     ++rep.messages;
     return true;

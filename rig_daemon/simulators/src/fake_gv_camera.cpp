@@ -1,4 +1,5 @@
 #include "rig_daemon/simulators/fake_gv_camera.h"
+#include "common/clock.h"
 
 #include <arpa/inet.h>
 #include <fcntl.h>
@@ -27,10 +28,6 @@ namespace {
 
 constexpr const char* kLockPath = "/tmp/hardcopy-arv-fake-gv-camera.lock";
 constexpr std::uint16_t kGvcpPort = 3956;
-
-double seconds_since(std::chrono::steady_clock::time_point t0) {
-  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-}
 
 }  // namespace
 

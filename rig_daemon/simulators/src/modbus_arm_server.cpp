@@ -1,4 +1,5 @@
 #include "rig_daemon/simulators/modbus_arm_server.h"
+#include "common/clock.h"
 
 #include <arpa/inet.h>
 #include <fcntl.h>
@@ -17,12 +18,6 @@
 
 namespace hc::rig::sim {
 namespace {
-
-std::int64_t monotonic_ns() {
-  timespec ts{};
-  ::clock_gettime(CLOCK_MONOTONIC, &ts);
-  return static_cast<std::int64_t>(ts.tv_sec) * 1'000'000'000 + ts.tv_nsec;
-}
 
 modbus_t* as_ctx(void* p) { return static_cast<modbus_t*>(p); }
 modbus_mapping_t* as_map(void* p) { return static_cast<modbus_mapping_t*>(p); }

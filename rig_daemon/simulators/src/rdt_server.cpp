@@ -1,4 +1,5 @@
 #include "rig_daemon/simulators/rdt_server.h"
+#include "common/clock.h"
 
 #include <arpa/inet.h>
 #include <fcntl.h>
@@ -15,12 +16,6 @@
 
 namespace hc::rig::sim {
 namespace {
-
-std::int64_t monotonic_ns() {
-  timespec ts{};
-  ::clock_gettime(CLOCK_MONOTONIC, &ts);
-  return static_cast<std::int64_t>(ts.tv_sec) * 1'000'000'000 + ts.tv_nsec;
-}
 
 std::string errno_text(const std::string& what) { return what + ": " + std::strerror(errno); }
 

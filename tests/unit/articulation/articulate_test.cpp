@@ -4,6 +4,7 @@
 // closed, manifold, free of self-intersections, d apart, the ball held, the range swept and the
 // clip replayed without collision.
 #include "fabrication/articulation/articulate.h"
+#include "test_units.h"
 
 #include <gtest/gtest.h>
 
@@ -18,8 +19,8 @@
 namespace hc::articulation {
 namespace {
 
-constexpr double kDeg = std::numbers::pi / 180;
-constexpr double kMm = 1e-3;
+using testing::kDeg;
+using testing::kMm;
 
 // A 16 mm thick, 90 mm long arm of two bones; the elbow at 45 mm.
 SkinnedCharacter arm() {

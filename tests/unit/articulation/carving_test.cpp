@@ -4,6 +4,7 @@
 // Hand-built: a 40 x 10 x 10 mm bar holding a cavity, and a "hull" of three slabs across it whose
 // pieces have volumes known by construction.
 #include "fabrication/articulation/carving.h"
+#include "test_units.h"
 
 #include <gtest/gtest.h>
 
@@ -15,7 +16,7 @@
 namespace hc::articulation {
 namespace {
 
-constexpr double kMm = 1e-3;
+using testing::kMm;
 
 TEST(Carving, PiecesWithoutAJointAreSeveredOrDroppedAsCrumbs) {
   using testing::box;

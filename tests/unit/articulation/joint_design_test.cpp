@@ -1,6 +1,7 @@
 // The max-min joint designs of thesis Sec. 6.4.2 against optima derived by hand: Fig. 6.4.7's
 // single point where the three critical areas are equal.
 #include "fabrication/articulation/joint_design.h"
+#include "test_units.h"
 
 #include <gtest/gtest.h>
 
@@ -11,8 +12,7 @@
 namespace hc::articulation {
 namespace {
 
-constexpr double kPi = std::numbers::pi;
-constexpr double kMm = 1e-3;
+using testing::kMm;
 
 // Root of a monotone function on [lo, hi] by bisection (f(lo) and f(hi) of opposite signs).
 double bisect(const std::function<double(double)>& f, double lo, double hi) {
@@ -41,7 +41,7 @@ TEST(JointDesign, BallAndSocketOptimumHasThreeEqualAreas) {
   };
   const double r_star = bisect(g, (2 + std::sqrt(2.0)) * d * 1.01, R * 0.999);
   const double h_star = h_of(r_star);
-  const double a_star = kPi * (R * R - r_star * r_star);
+  const double a_star = std::numbers::pi * (R * R - r_star * r_star);
 
   JointDesignOptions options;
   options.clearance_m = d;
@@ -56,7 +56,7 @@ TEST(JointDesign, BallAndSocketOptimumHasThreeEqualAreas) {
   // The closed form's A2 (no cut) is what the model computed.
   const double rb = r_star - d, s0 = std::sqrt(r_star * r_star - rb * rb);
   EXPECT_NEAR(ball_socket_areas(R, r_star, h_star, BallRange{}, options)[1],
-              2 * kPi * rb * (h_star - s0), 1e-6 * a_star);
+              2 * std::numbers::pi * rb * (h_star - s0), 1e-6 * a_star);
   // ~12.4 mm^2 for r_max = 5 mm: above the thesis's A_min = 10 mm^2.
   EXPECT_GT(design.min_area, 10 * kMm * kMm);
 }
@@ -66,24 +66,26 @@ TEST(JointDesign, BallRangeCutsTheLipAsEq66) {
   // alpha = acos(h / r') and delta = asin(d / r'), the cone psi = alpha + phi + delta meets the
   // lip cylinder at z = r' / tan(psi) for every theta, so A2 = 2 pi r' clamp(z - s0, 0, h - s0).
   const double d = 0.3 * kMm, r = 3 * kMm, h = 2 * kMm, rb = r - d;
-  const double phi = 20 * kPi / 180;
+  const double phi = 20 * std::numbers::pi / 180;
   const double psi = std::acos(h / rb) + phi + std::asin(d / rb);
   const double s0 = std::sqrt(r * r - rb * rb);
-  const double expected = 2 * kPi * rb * std::clamp(rb / std::tan(psi) - s0, 0.0, h - s0);
+  const double expected =
+      2 * std::numbers::pi * rb * std::clamp(rb / std::tan(psi) - s0, 0.0, h - s0);
   JointDesignOptions options;
   options.clearance_m = d;
   const auto a = ball_socket_areas(5 * kMm, r, h, BallRange{phi, phi}, options);
   EXPECT_NEAR(a[1], expected, 1e-9 * kMm * kMm);
-  EXPECT_LT(a[1], 2 * kPi * rb * (h - s0));  // the range did cut
+  EXPECT_LT(a[1], 2 * std::numbers::pi * rb * (h - s0));  // the range did cut
   // Past 90 deg the cone reaches the equator and A1 and the lip vanish in every direction.
-  const auto wide = ball_socket_areas(5 * kMm, r, h, BallRange{kPi / 2, kPi / 2}, options);
+  const auto wide = ball_socket_areas(
+      5 * kMm, r, h, BallRange{std::numbers::pi / 2, std::numbers::pi / 2}, options);
   EXPECT_EQ(wide[0], 0.0);
   EXPECT_EQ(wide[1], 0.0);
   // An elliptical range: phi(0) = phi_f, phi(pi/2) = phi_a.
   const BallRange ellipse{0.3, 0.1};
   EXPECT_NEAR(ellipse.at(0), 0.3, 1e-12);
-  EXPECT_NEAR(ellipse.at(kPi / 2), 0.1, 1e-12);
-  EXPECT_NEAR(ellipse.at(kPi), 0.3, 1e-12);
+  EXPECT_NEAR(ellipse.at(std::numbers::pi / 2), 0.1, 1e-12);
+  EXPECT_NEAR(ellipse.at(std::numbers::pi), 0.3, 1e-12);
 }
 
 TEST(JointDesign, HingeOptimumBalancesPinAndKnuckleOnTheSphereConstraint) {
@@ -97,13 +99,18 @@ TEST(JointDesign, HingeOptimumBalancesPinAndKnuckleOnTheSphereConstraint) {
   const double d = 0.3 * kMm, rm = 5 * kMm;
   const auto areas = [&](double r, double t) {
     const double R = rm * std::cos(t), b = 2 * rm * std::sin(t);
-    return std::array<double, 3>{2 * kPi * (r - d) * (r - d), 2 * (b - 2 * d) * (R - d - r),
-                                 kPi * rm * rm - 2 * b * (R - r + d)};
+    return std::array<double, 3>{2 * std::numbers::pi * (r - d) * (r - d),
+                                 2 * (b - 2 * d) * (R - d - r),
+                                 std::numbers::pi * rm * rm - 2 * b * (R - r + d)};
   };
   const auto r_of = [&](double t) {
     const double R = rm * std::cos(t);
-    return bisect([&](double r) { auto a = areas(r, t); return a[0] - a[1]; }, d * 1.0001,
-                  R - d);
+    return bisect(
+        [&](double r) {
+          auto a = areas(r, t);
+          return a[0] - a[1];
+        },
+        d * 1.0001, R - d);
   };
   double lo = 0.1, hi = 1.3;
   const double g = (std::sqrt(5.0) - 1) / 2;
@@ -136,12 +143,12 @@ TEST(JointDesign, HingeSwingPast90DegreesCutsTheFork) {
   JointDesignOptions options;
   options.clearance_m = d;
   const auto none = hinge_areas(rm, R, r, b, HingeRange{}, options);
-  EXPECT_NEAR(none[2], kPi * rm * rm - 2 * b * (R - r + d), 1e-15);
+  EXPECT_NEAR(none[2], std::numbers::pi * rm * rm - 2 * b * (R - r + d), 1e-15);
   // alpha = asin((R - d - r) / (R - d)) = 47.8 deg: a 60 deg forward swing passes 90 deg and
   // removes the disc segment beyond R - d = 2.7 mm less the slot's strip b x d.
   const double y0 = R - d;
   const double segment = rm * rm * std::acos(y0 / rm) - y0 * std::sqrt(rm * rm - y0 * y0);
-  const auto swung = hinge_areas(rm, R, r, b, HingeRange{60 * kPi / 180, 0}, options);
+  const auto swung = hinge_areas(rm, R, r, b, HingeRange{60 * std::numbers::pi / 180, 0}, options);
   EXPECT_NEAR(swung[2], none[2] - (segment - b * d), 1e-15);
   EXPECT_EQ(swung[0], none[0]);
   EXPECT_EQ(swung[1], none[1]);

@@ -1,6 +1,7 @@
 // Joints from motion on synthetic skinned arms animated about known axes and centres: the hinge
 // axis within 2 degrees, the ranges within 2 degrees, the rotation centre on the true axis.
 #include "fabrication/articulation/motion.h"
+#include "test_units.h"
 
 #include <gtest/gtest.h>
 
@@ -13,7 +14,7 @@
 namespace hc::articulation {
 namespace {
 
-constexpr double kDeg = std::numbers::pi / 180;
+using testing::kDeg;
 
 double angle_between_lines(const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
   return std::acos(std::min(1.0, std::abs(a.normalized().dot(b.normalized()))));
@@ -95,9 +96,9 @@ TEST(Motion, TwoAxesMakeABallWithTheObservedCone) {
   c.clips.push_back(testing::rotation_clip(c, 1, Eigen::Vector3d::UnitZ(), centre, 0, 15 * kDeg));
   Result<LinkMotion> motion = fit_link_motion(c, MotionOptions{});
   ASSERT_TRUE(motion.ok());
-  const MotionEstimate e = estimate_joint_motion(*motion, 0, 1, Eigen::Vector3d::UnitY(),
-                                                 Eigen::Vector3d(0, 0.04, 0), c.clips,
-                                                 MotionOptions{});
+  const MotionEstimate e =
+      estimate_joint_motion(*motion, 0, 1, Eigen::Vector3d::UnitY(), Eigen::Vector3d(0, 0.04, 0),
+                            c.clips, MotionOptions{});
   ASSERT_EQ(e.type, MotionJointType::kBall);
   EXPECT_LT(angle_between_lines(e.tilt_direction, Eigen::Vector3d::UnitZ()), 2 * kDeg);
   EXPECT_NEAR(e.cone_major_rad, 30 * kDeg, 2 * kDeg);
@@ -116,13 +117,13 @@ TEST(Motion, ALinkThatNeverMovesIsFused) {
                                            Eigen::Vector3d(0, 0.06, 0), 0, 30 * kDeg));
   Result<LinkMotion> motion = fit_link_motion(c, MotionOptions{});
   ASSERT_TRUE(motion.ok());
-  const MotionEstimate still = estimate_joint_motion(
-      *motion, 0, 1, Eigen::Vector3d::UnitY(), Eigen::Vector3d(0, 0.03, 0), c.clips, {});
+  const MotionEstimate still = estimate_joint_motion(*motion, 0, 1, Eigen::Vector3d::UnitY(),
+                                                     Eigen::Vector3d(0, 0.03, 0), c.clips, {});
   EXPECT_EQ(still.type, MotionJointType::kFused);
   EXPECT_LT(still.max_angle_rad, 0.1 * kDeg);
   EXPECT_TRUE(still.clips.empty());
-  const MotionEstimate moving = estimate_joint_motion(
-      *motion, 1, 2, Eigen::Vector3d::UnitY(), Eigen::Vector3d(0, 0.06, 0), c.clips, {});
+  const MotionEstimate moving = estimate_joint_motion(*motion, 1, 2, Eigen::Vector3d::UnitY(),
+                                                      Eigen::Vector3d(0, 0.06, 0), c.clips, {});
   EXPECT_EQ(moving.type, MotionJointType::kHinge);
 }
 

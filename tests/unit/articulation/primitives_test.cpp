@@ -13,8 +13,6 @@
 namespace hc::articulation {
 namespace {
 
-constexpr double kPi = std::numbers::pi;
-
 // Every directed edge once, and its reverse once: closed, manifold along edges, consistently
 // oriented.
 bool closed_and_oriented(const TriangleMesh& m) {
@@ -33,7 +31,8 @@ bool closed_and_oriented(const TriangleMesh& m) {
 std::pair<double, double> radial_extent(const TriangleMesh& m) {
   double lo = 1e9, hi = 0;
   for (Eigen::Index t = 0; t < m.num_triangles(); ++t) {
-    const Eigen::Vector3d a = m.vertices.row(m.triangles(t, 0)), b = m.vertices.row(m.triangles(t, 1)),
+    const Eigen::Vector3d a = m.vertices.row(m.triangles(t, 0)),
+                          b = m.vertices.row(m.triangles(t, 1)),
                           c = m.vertices.row(m.triangles(t, 2));
     const Eigen::Vector3d nrm = (b - a).cross(c - a).normalized();
     lo = std::min(lo, std::abs(nrm.dot(a)));  // distance of the facet's plane
@@ -47,7 +46,7 @@ TEST(Primitives, SpheresAreClosedAndFacetedOnTheirSide) {
   const TriangleMesh in = sphere_mesh(r, 40, Facet::kInscribed);
   const TriangleMesh out = sphere_mesh(r, 40, Facet::kCircumscribed);
   for (const TriangleMesh* m : {&in, &out}) EXPECT_TRUE(closed_and_oriented(*m));
-  const double v = 4.0 / 3.0 * kPi * r * r * r;
+  const double v = 4.0 / 3.0 * std::numbers::pi * r * r * r;
   EXPECT_LT(enclosed_volume(in), v);
   EXPECT_GT(enclosed_volume(in), 0.98 * v);
   EXPECT_GT(enclosed_volume(out), v);
@@ -59,9 +58,10 @@ TEST(Primitives, ConeSectorVolumeIsTheSphericalSector) {
   // Spherical sector of half-angle psi: V = 2/3 pi R^3 (1 - cos psi).
   for (double psi : {0.4, 1.2, 2.0}) {
     SCOPED_TRACE(psi);
-    const TriangleMesh m = cone_sector_mesh([psi](double) { return psi; }, 1.0, 96, Facet::kInscribed);
+    const TriangleMesh m =
+        cone_sector_mesh([psi](double) { return psi; }, 1.0, 96, Facet::kInscribed);
     EXPECT_TRUE(closed_and_oriented(m));
-    EXPECT_NEAR(enclosed_volume(m), 2.0 / 3.0 * kPi * (1 - std::cos(psi)), 0.01);
+    EXPECT_NEAR(enclosed_volume(m), 2.0 / 3.0 * std::numbers::pi * (1 - std::cos(psi)), 0.01);
   }
   // Circumscribed sides: points just inside the true cone (polar angle 0.995 psi, half-way to
   // the cap) are inside the 12-sided mesh cone in every direction; with inscribed sides, the
@@ -75,10 +75,10 @@ TEST(Primitives, ConeSectorVolumeIsTheSphericalSector) {
   const geometry::MeshProximity out = cone(Facet::kCircumscribed), in = cone(Facet::kInscribed);
   int outside_inscribed = 0;
   for (int k = 0; k < 120; ++k) {
-    const double theta = 2 * kPi * (k + 0.5) / 120, beta = 0.995 * psi;
-    const Eigen::Vector3d p = 0.5 * Eigen::Vector3d(std::sin(beta) * std::sin(theta),
-                                                    std::cos(beta),
-                                                    std::sin(beta) * std::cos(theta));
+    const double theta = 2 * std::numbers::pi * (k + 0.5) / 120, beta = 0.995 * psi;
+    const Eigen::Vector3d p =
+        0.5 * Eigen::Vector3d(std::sin(beta) * std::sin(theta), std::cos(beta),
+                              std::sin(beta) * std::cos(theta));
     EXPECT_TRUE(out.contains(p)) << theta;
     if (!in.contains(p)) ++outside_inscribed;
   }
@@ -88,13 +88,16 @@ TEST(Primitives, ConeSectorVolumeIsTheSphericalSector) {
 TEST(Primitives, CylindersAndSectorPrisms) {
   const TriangleMesh c = cylinder_mesh(1.0, -1.0, 2.0, 64, Facet::kInscribed);
   EXPECT_TRUE(closed_and_oriented(c));
-  EXPECT_NEAR(enclosed_volume(c), kPi * 3.0, 0.02 * 3);
-  EXPECT_GT(enclosed_volume(cylinder_mesh(1.0, -1.0, 2.0, 64, Facet::kCircumscribed)), kPi * 3.0);
+  EXPECT_NEAR(enclosed_volume(c), std::numbers::pi * 3.0, 0.02 * 3);
+  EXPECT_GT(enclosed_volume(cylinder_mesh(1.0, -1.0, 2.0, 64, Facet::kCircumscribed)),
+            std::numbers::pi * 3.0);
   // Annular sector: 1/2 (r1^2 - r0^2) (phi1 - phi0) (x1 - x0).
-  const TriangleMesh ring = sector_prism_mesh(1.0, 3.0, -0.5, 1.0, 0.0, 2.0, 256, Facet::kInscribed);
+  const TriangleMesh ring =
+      sector_prism_mesh(1.0, 3.0, -0.5, 1.0, 0.0, 2.0, 256, Facet::kInscribed);
   EXPECT_TRUE(closed_and_oriented(ring));
   EXPECT_NEAR(enclosed_volume(ring), 0.5 * 8.0 * 1.5 * 2.0, 0.01 * 12);
-  const TriangleMesh wedge = sector_prism_mesh(0.0, 2.0, -0.3, 0.3, -1.0, 1.0, 256, Facet::kInscribed);
+  const TriangleMesh wedge =
+      sector_prism_mesh(0.0, 2.0, -0.3, 0.3, -1.0, 1.0, 256, Facet::kInscribed);
   EXPECT_TRUE(closed_and_oriented(wedge));
   EXPECT_NEAR(enclosed_volume(wedge), 0.5 * 4.0 * 0.6 * 2.0, 0.01 * 2.4);
 }
@@ -131,8 +134,8 @@ TEST(MeshProximity, BoxesAtAKnownGapAndOverlap) {
 TEST(MeshProximity, TriangleEdgeToEdgeDistance) {
   // Two triangles whose closest features are two crossing edges 1 apart (no vertex is closest).
   Eigen::Vector3d pa, pb;
-  const double d = geometry::triangle_closest_points(
-      {-1, 0, 0}, {1, 0, 0}, {0, 0, -1}, {0, -1, 1}, {0, 1, 1}, {0, 0, 2}, &pa, &pb);
+  const double d = geometry::triangle_closest_points({-1, 0, 0}, {1, 0, 0}, {0, 0, -1}, {0, -1, 1},
+                                                     {0, 1, 1}, {0, 0, 2}, &pa, &pb);
   EXPECT_NEAR(d, 1.0, 1e-12);
   EXPECT_LT((pa - Eigen::Vector3d(0, 0, 0)).norm(), 1e-12);
   EXPECT_LT((pb - Eigen::Vector3d(0, 0, 1)).norm(), 1e-12);

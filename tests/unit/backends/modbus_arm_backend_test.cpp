@@ -19,7 +19,7 @@ using devices::ArmMotion;
 using devices::ArmState;
 using devices::DeviceState;
 
-struct Fixture {
+struct ArmFixture {
   std::unique_ptr<sim::ModbusArmServer> server;
   std::unique_ptr<devices::Arm> arm;
   std::uint64_t seq = 100;
@@ -46,8 +46,8 @@ struct Fixture {
   }
 };
 
-Fixture make() {
-  Fixture f;
+ArmFixture make_arm_fixture() {
+  ArmFixture f;
   sim::ModbusArmServerOptions so;
   so.home_speed_m_s = 1.0;
   auto server = sim::ModbusArmServer::start(so);
@@ -70,7 +70,7 @@ Fixture make() {
 }
 
 TEST(ModbusArmBackend, HomesAndMovesToPoseAtFiniteSpeed) {
-  Fixture f = make();
+  ArmFixture f = make_arm_fixture();
   ASSERT_TRUE(f.arm);
   ASSERT_TRUE(f.arm->activate().ok()) << f.arm->error().to_string();
   auto first = f.arm->read();
@@ -102,7 +102,7 @@ TEST(ModbusArmBackend, HomesAndMovesToPoseAtFiniteSpeed) {
 }
 
 TEST(ModbusArmBackend, RefusesTargetsOutsideTheLimitsAndReportsControllerFaults) {
-  Fixture f = make();
+  ArmFixture f = make_arm_fixture();
   ASSERT_TRUE(f.arm);
   ASSERT_TRUE(f.arm->activate().ok());
   Status s = f.send(ArmCommand::Type::kMoveTo, {0.5, 0, 0.1, 0});
@@ -122,7 +122,7 @@ TEST(ModbusArmBackend, RefusesTargetsOutsideTheLimitsAndReportsControllerFaults)
 }
 
 TEST(ModbusArmBackend, StopFromAnotherThreadHaltsAMove) {
-  Fixture f = make();
+  ArmFixture f = make_arm_fixture();
   ASSERT_TRUE(f.arm);
   ASSERT_TRUE(f.arm->activate().ok());
   ASSERT_TRUE(f.send(ArmCommand::Type::kHome).ok());
@@ -140,7 +140,7 @@ TEST(ModbusArmBackend, StopFromAnotherThreadHaltsAMove) {
 }
 
 TEST(ModbusArmBackend, ControllerThatDisappearsIsReportedAndRecoveredByReset) {
-  Fixture f = make();
+  ArmFixture f = make_arm_fixture();
   ASSERT_TRUE(f.arm);
   ASSERT_TRUE(f.arm->activate().ok());
   ASSERT_TRUE(f.send(ArmCommand::Type::kHome).ok());

@@ -42,13 +42,13 @@ sim::RdtServerOptions server_options(std::uint64_t seed = 1, rdt::Calibration ca
   return so;
 }
 
-struct Fixture {
+struct NetFtFixture {
   std::unique_ptr<sim::RdtServer> server;
   std::unique_ptr<devices::ForceTorque> ft;
 };
 
-Fixture make(const std::string& extra_yaml = "", sim::RdtServerOptions so = {}) {
-  Fixture f;
+NetFtFixture make_netft_fixture(const std::string& extra_yaml = "", sim::RdtServerOptions so = {}) {
+  NetFtFixture f;
   if (!so.signal) so.signal = signal;
   auto server = sim::RdtServer::start(so);
   EXPECT_TRUE(server.ok()) << server.status().to_string();
@@ -89,8 +89,8 @@ TEST(NetFtBackend, RegistryKnowsTheHardwareBackends) {
 }
 
 TEST(NetFtBackend, StreamsCalibratedSamplesWithContiguousSequence) {
-  Fixture f =
-      make("calibration_source: sensor\n", server_options(1, {1'000'000, 1'000, "N", "Nmm"}));
+  NetFtFixture f = make_netft_fixture("calibration_source: sensor\n",
+                                      server_options(1, {1'000'000, 1'000, "N", "Nmm"}));
   ASSERT_TRUE(f.ft);
   EXPECT_DOUBLE_EQ(f.ft->calibration().counts_per_n, 1e6);
   ASSERT_TRUE(f.ft->activate().ok()) << f.ft->error().to_string();
@@ -119,7 +119,7 @@ TEST(NetFtBackend, HostBiasKeepsRawCounts) {
     w.torque_nm[1] = -0.5;
     return w;
   };
-  Fixture f = make("", so);
+  NetFtFixture f = make_netft_fixture("", so);
   ASSERT_TRUE(f.ft);
   ASSERT_TRUE(f.ft->activate().ok());
   std::vector<WrenchSample> s;
@@ -139,7 +139,7 @@ TEST(NetFtBackend, HostBiasKeepsRawCounts) {
 }
 
 TEST(NetFtBackend, DroppedPacketsAreCountedLostAndReorderedOnesKept) {
-  Fixture f = make("", server_options(7));
+  NetFtFixture f = make_netft_fixture("", server_options(7));
   ASSERT_TRUE(f.ft);
   ASSERT_TRUE(f.ft->activate().ok());
   std::vector<WrenchSample> s;
@@ -161,7 +161,7 @@ TEST(NetFtBackend, DroppedPacketsAreCountedLostAndReorderedOnesKept) {
 }
 
 TEST(NetFtBackend, ShortStallIsBridgedByRestartingTheStream) {
-  Fixture f = make("stall_timeout_s: 0.05\n");
+  NetFtFixture f = make_netft_fixture("stall_timeout_s: 0.05\n");
   ASSERT_TRUE(f.ft);
   ASSERT_TRUE(f.ft->activate().ok());
   std::vector<WrenchSample> s;
@@ -187,7 +187,7 @@ TEST(NetFtBackend, ShortStallIsBridgedByRestartingTheStream) {
 }
 
 TEST(NetFtBackend, StoppedStreamIsReportedAndRecoveredByResetWithoutLosingSamples) {
-  Fixture f = make("stall_timeout_s: 0.05\n");
+  NetFtFixture f = make_netft_fixture("stall_timeout_s: 0.05\n");
   ASSERT_TRUE(f.ft);
   ASSERT_TRUE(f.ft->activate().ok());
   std::vector<WrenchSample> s;

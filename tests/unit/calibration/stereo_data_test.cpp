@@ -33,7 +33,7 @@ constexpr double kRefBaselineSquares = 3.343;
 
 const std::vector<int> kViews = {1, 2, 3, 4, 5, 6, 7, 8, 9, 11, 12, 13, 14};
 
-BoardSpec board() {
+BoardSpec opencv_sample_board() {
   Result<BoardSpec> b = parse_board_spec("chessboard:9x6:0.025");
   EXPECT_TRUE(b.ok());
   return *b;
@@ -54,7 +54,7 @@ CameraObservations detect_side(const std::string& side) {
     cam.width = img.cols;
     cam.height = img.rows;
     ImageView view{img.cols, img.rows, static_cast<int>(img.step), 1, img.data};
-    Result<std::optional<BoardDetection>> d = detect_board(view, board());
+    Result<std::optional<BoardDetection>> d = detect_board(view, opencv_sample_board());
     EXPECT_TRUE(d.ok());
     if (!d.ok() || !d->has_value()) continue;
     cam.views.push_back({v, (*d)->ids, (*d)->pixels});
@@ -115,7 +115,8 @@ TEST(OpenCvStereoData, DetectionMatchesOpenCv46Corners) {
 TEST(OpenCvStereoData, LeftIntrinsicsFromImagesMatchReference) {
   const CameraObservations left = detect_side("left");
   ASSERT_EQ(left.views.size(), 13u);
-  Result<CalibrationSummary> cv_res = calibrate_camera_opencv(left, board(), mono_options());
+  Result<CalibrationSummary> cv_res =
+      calibrate_camera_opencv(left, opencv_sample_board(), mono_options());
   ASSERT_TRUE(cv_res.ok()) << cv_res.status().message();
   const CameraModel& m = cv_res->rig.cameras[0];
   EXPECT_NEAR(cv_res->joint_rms_px, kRefMonoRms, 0.02);
@@ -123,7 +124,7 @@ TEST(OpenCvStereoData, LeftIntrinsicsFromImagesMatchReference) {
   EXPECT_DOUBLE_EQ(m.fx, m.fy);
 
   // Our Ceres refinement of the same model: the same minimum (RMS no worse, fx close).
-  Result<CalibrationSummary> ba = calibrate_rig({left}, board(), mono_options());
+  Result<CalibrationSummary> ba = calibrate_rig({left}, opencv_sample_board(), mono_options());
   ASSERT_TRUE(ba.ok()) << ba.status().message();
   const CameraModel& b = ba->rig.cameras[0];
   EXPECT_NEAR(ba->joint_rms_px, kRefMonoRms, 0.02);
@@ -154,13 +155,14 @@ TEST(OpenCvStereoData, LeftIntrinsicsFromImagesMatchReference) {
 
 TEST(OpenCvStereoData, SolverAloneOnOpenCvCorners) {
   const CameraObservations left = reference_side("left");
-  Result<CalibrationSummary> cv_res = calibrate_camera_opencv(left, board(), mono_options());
+  Result<CalibrationSummary> cv_res =
+      calibrate_camera_opencv(left, opencv_sample_board(), mono_options());
   ASSERT_TRUE(cv_res.ok()) << cv_res.status().message();
   // Same corners and algorithm as the reference run (which used samples/cpp/calibration.cpp:
   // calibrateCameraRO with CALIB_USE_LU, so not bit-identical): 0.002 px and 0.01 %.
   EXPECT_NEAR(cv_res->joint_rms_px, kRefMonoRms, 2e-3);
   EXPECT_NEAR(cv_res->rig.cameras[0].fx, kRefMonoFx, 1e-4 * kRefMonoFx);
-  Result<CalibrationSummary> ba = calibrate_rig({left}, board(), mono_options());
+  Result<CalibrationSummary> ba = calibrate_rig({left}, opencv_sample_board(), mono_options());
   ASSERT_TRUE(ba.ok()) << ba.status().message();
   const CameraModel& b = ba->rig.cameras[0];
   EXPECT_LE(ba->joint_rms_px, kRefMonoRms + 1e-4);
@@ -172,7 +174,7 @@ TEST(OpenCvStereoData, SolverAloneOnOpenCvCorners) {
 void check_stereo(const CameraObservations& left, const CameraObservations& right) {
   CalibrationOptions o;
   o.fix_aspect_ratio = true;
-  Result<CalibrationSummary> s = calibrate_rig({left, right}, board(), o);
+  Result<CalibrationSummary> s = calibrate_rig({left, right}, opencv_sample_board(), o);
   ASSERT_TRUE(s.ok()) << s.status().message();
   EXPECT_LE(s->joint_rms_px, kRefStereoRms);
   const double baseline = s->rig.cameras[1].t_m.norm();

@@ -58,7 +58,7 @@
 namespace hc::calib {
 namespace {
 
-BoardSpec board() { return *parse_board_spec("chessboard:9x6:0.05"); }
+BoardSpec synthetic_board() { return *parse_board_spec("chessboard:9x6:0.05"); }
 
 struct Errors {
   double focal_rel = 0.0;     // worst |f - f_true| / f_true over fx, fy
@@ -106,7 +106,7 @@ void solver_case(const Case& k) {
     o.cameras = k.cameras;
     return o;
   }();
-  const BoardSpec b = k.capture ? capture_board() : board();
+  const BoardSpec b = k.capture ? capture_board() : synthetic_board();
   const std::vector<CameraModel> truth = make_half_circle_rig(ro);
   BoardPoseOptions po = capture_board_poses(k.poses, k.seed);
   // Seven cameras: the arc's ends never see the board together (issue 5).
@@ -254,12 +254,12 @@ TEST(SyntheticRig, OutlierViewFlagged) {
   ro.cameras = 2;
   ro.arc_deg = 40.0;
   const std::vector<CameraModel> truth = make_half_circle_rig(ro);
-  const auto P = random_board_poses(truth, board(), 12, 5);
-  std::vector<CameraObservations> obs = synthetic_observations(truth, board(), P, 0.1, 6);
+  const auto P = random_board_poses(truth, synthetic_board(), 12, 5);
+  std::vector<CameraObservations> obs = synthetic_observations(truth, synthetic_board(), P, 0.1, 6);
   // Corrupt one view of camera 1 by 3 px of structured error.
   ViewObservation& bad = obs[1].views[3];
   for (std::size_t i = 0; i < bad.pixels.size(); ++i) bad.pixels[i].x() += (i % 2 ? 3.0 : -3.0);
-  Result<CalibrationSummary> s = calibrate_rig(obs, board(), {});
+  Result<CalibrationSummary> s = calibrate_rig(obs, synthetic_board(), {});
   ASSERT_TRUE(s.ok()) << s.status().message();
   const auto out = s->outliers();
   ASSERT_EQ(out.size(), 1u);
@@ -269,7 +269,7 @@ TEST(SyntheticRig, OutlierViewFlagged) {
   CalibrationOptions robust;
   robust.loss = RobustLoss::kHuber;
   robust.loss_scale_px = 0.5;
-  Result<CalibrationSummary> r = calibrate_rig(obs, board(), robust);
+  Result<CalibrationSummary> r = calibrate_rig(obs, synthetic_board(), robust);
   ASSERT_TRUE(r.ok());
   EXPECT_LT(compare(truth, r->rig).focal_rel, compare(truth, s->rig).focal_rel + 1e-4);
 }
@@ -278,17 +278,17 @@ TEST(SyntheticRig, DisconnectedCameraIsAnError) {
   SyntheticRigOptions ro;
   ro.cameras = 2;
   const auto truth = make_half_circle_rig(ro);
-  auto obs =
-      synthetic_observations(truth, board(), random_board_poses(truth, board(), 10, 3, 1), 0.0, 1);
+  auto obs = synthetic_observations(truth, synthetic_board(),
+                                    random_board_poses(truth, synthetic_board(), 10, 3, 1), 0.0, 1);
   // Renumber camera 1's views so none is shared with camera 0.
   for (ViewObservation& v : obs[1].views) v.view += 1000;
-  Result<CalibrationSummary> s = calibrate_rig(obs, board(), {});
+  Result<CalibrationSummary> s = calibrate_rig(obs, synthetic_board(), {});
   ASSERT_FALSE(s.ok());
   EXPECT_NE(s.status().message().find("cam1"), std::string::npos) << s.status().message();
   // Too few views.
   obs[1].views.resize(2);
   for (ViewObservation& v : obs[1].views) v.view -= 1000;
-  s = calibrate_rig(obs, board(), {});
+  s = calibrate_rig(obs, synthetic_board(), {});
   ASSERT_FALSE(s.ok());
   EXPECT_NE(s.status().message().find("cam1"), std::string::npos);
 }

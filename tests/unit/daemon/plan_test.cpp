@@ -17,12 +17,8 @@
 namespace hc::rig {
 namespace {
 
-std::filesystem::path example(const std::string& name) {
-  return hc::testing::source_dir() / "rig_daemon/examples" / name;
-}
-
 TEST(Plan, ExampleAutomatedPlanReads) {
-  Result<Plan> plan = load_plan(example("automated_block.yaml"));
+  Result<Plan> plan = load_plan(hc::testing::rig_example("automated_block.yaml"));
   ASSERT_TRUE(plan.ok()) << plan.status().to_string();
   EXPECT_EQ(plan->protocol, Protocol::kAutomated);
   EXPECT_EQ(plan->name, "silicone_block");
@@ -36,7 +32,7 @@ TEST(Plan, ExampleAutomatedPlanReads) {
 }
 
 TEST(Plan, ExampleHandHeldPlanReads) {
-  Result<Plan> plan = load_plan(example("hand_held_face.yaml"));
+  Result<Plan> plan = load_plan(hc::testing::rig_example("hand_held_face.yaml"));
   ASSERT_TRUE(plan.ok()) << plan.status().to_string();
   EXPECT_EQ(plan->protocol, Protocol::kHandHeld);
   EXPECT_EQ(plan->hand_held.cameras.size(), 3u);  // thesis 4.4: trinocular system
@@ -45,7 +41,7 @@ TEST(Plan, ExampleHandHeldPlanReads) {
 }
 
 TEST(Plan, ExampleCalibrationPlanReads) {
-  Result<Plan> plan = load_plan(example("calibration_board.yaml"));
+  Result<Plan> plan = load_plan(hc::testing::rig_example("calibration_board.yaml"));
   ASSERT_TRUE(plan.ok()) << plan.status().to_string();
   EXPECT_EQ(plan->protocol, Protocol::kCalibration);
   const CalibrationPlan& c = plan->calibration;
@@ -62,7 +58,7 @@ TEST(Plan, ExampleCalibrationPlanReads) {
 }
 
 TEST(Plan, ExampleTrackingPlanReads) {
-  Result<Plan> plan = load_plan(example("automated_track.yaml"));
+  Result<Plan> plan = load_plan(hc::testing::rig_example("automated_track.yaml"));
   ASSERT_TRUE(plan.ok()) << plan.status().to_string();
   EXPECT_EQ(plan->protocol, Protocol::kAutomated);
   EXPECT_EQ(plan->automated.locations.size(), 1u);
@@ -70,7 +66,7 @@ TEST(Plan, ExampleTrackingPlanReads) {
 }
 
 TEST(Plan, ExampleHandEyePlanReads) {
-  Result<Plan> plan = load_plan(example("hand_eye.yaml"));
+  Result<Plan> plan = load_plan(hc::testing::rig_example("hand_eye.yaml"));
   ASSERT_TRUE(plan.ok()) << plan.status().to_string();
   EXPECT_EQ(plan->protocol, Protocol::kAutomated);
   const auto& l = plan->automated.locations;
@@ -212,7 +208,7 @@ TEST(RigConfig, EmbeddedDefaultIsAllSimulated) {
 }
 
 TEST(RigConfig, ExampleMatchesEmbeddedDefault) {
-  Result<RigConfig> example_rig = load_rig_config(example("rig_sim.yaml"));
+  Result<RigConfig> example_rig = load_rig_config(hc::testing::rig_example("rig_sim.yaml"));
   ASSERT_TRUE(example_rig.ok()) << example_rig.status().to_string();
   Result<RigConfig> def = embedded_default_rig_config();
   ASSERT_TRUE(def.ok());
@@ -272,7 +268,7 @@ TEST(RigConfig, HighResolutionExampleRigSeesTheWholeSpecimen) {
   // rig_sim_hires.yaml: seven 1600 x 1200 cameras on a half circle (thesis 5.6). At rest every
   // one of the specimen's 441 markers (21 x 21, 3 mm grid over 60 mm) is in every camera's view,
   // each dot is several pixels wide, and the specimen spans a good part of the image.
-  Result<RigConfig> cfg = load_rig_config(example("rig_sim_hires.yaml"));
+  Result<RigConfig> cfg = load_rig_config(hc::testing::rig_example("rig_sim_hires.yaml"));
   ASSERT_TRUE(cfg.ok()) << cfg.status().to_string();
   Rig::Options o;
   o.config = *cfg;
@@ -302,7 +298,7 @@ TEST(RigConfig, HighResolutionExampleRigSeesTheWholeSpecimen) {
   }
   // The example calibration plan suits this rig too: every board pose is seen whole by at least
   // two cameras (so the joint adjustment links them), some only by a subset.
-  Result<Plan> plan = load_plan(example("calibration_board.yaml"));
+  Result<Plan> plan = load_plan(hc::testing::rig_example("calibration_board.yaml"));
   ASSERT_TRUE(plan.ok());
   devices::sim::BoardSpec spec;
   spec.cols = plan->calibration.board_cols;

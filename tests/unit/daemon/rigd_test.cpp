@@ -22,9 +22,9 @@
 #include "raw_client.h"
 #include "rig_daemon/daemon/plan.h"
 #include "rig_daemon/recording/mcap_reader.h"
+#include "sanitizer.h"
 #include "session_support.h"
 #include "test_data.h"
-#include "sanitizer.h"
 
 namespace hc::rig {
 namespace {
@@ -43,9 +43,7 @@ CmdResult run(const std::string& cmd, bool drop_stderr = false) {
 // Output of a command that prints JSON on stdout (stderr dropped).
 CmdResult run_json(const std::string& cmd) { return run(cmd, true); }
 
-std::string example(const std::string& name) {
-  return (source_dir() / "rig_daemon/examples" / name).string();
-}
+std::string example_arg(const std::string& name) { return hc::testing::rig_example(name).string(); }
 
 // Under AddressSanitizer on a loaded 2-core CI machine the real-time daemon can pause for longer
 // than the default 50 ms stall limit, which (correctly) aborts the session. The stall trip itself
@@ -59,7 +57,7 @@ class Rigd {
 #ifdef HC_TEST_SANITIZED
     const std::string config = (dir / "rig.yaml").string();
     {
-      std::ifstream in(example("rig_sim.yaml"));
+      std::ifstream in(example_arg("rig_sim.yaml"));
       std::stringstream text;
       text << in.rdbuf();
       std::string yaml = text.str();
@@ -139,7 +137,7 @@ TEST(Rigd, EveryExamplePlanAssociatesFully) {
     std::size_t edges;
   } plans[] = {{"hand_held_face.yaml", 20}, {"automated_block.yaml", 120}};
   for (const auto& p : plans) {
-    CmdResult r = run_json(rigd.rigctl("start --wait --json " + example(p.plan)));
+    CmdResult r = run_json(rigd.rigctl("start --wait --json " + example_arg(p.plan)));
     ASSERT_EQ(r.exit_code, 0) << p.plan << ": " << r.out;
     Result<Json> summary = parse_json(r.out, "summary");
     ASSERT_TRUE(summary.ok()) << r.out;
@@ -152,7 +150,7 @@ TEST(Rigd, EveryExamplePlanAssociatesFully) {
     EXPECT_DOUBLE_EQ(a["frame_association"].get<double>(), 1.0);
     EXPECT_DOUBLE_EQ(a["edge_completeness"].get<double>(), 1.0);
 
-    Result<Plan> plan = load_plan(example(p.plan));
+    Result<Plan> plan = load_plan(example_arg(p.plan));
     ASSERT_TRUE(plan.ok());
     const bool hand_held = plan->protocol == Protocol::kHandHeld;
     const testing::SessionContents c = testing::read_session(s["session"].get<std::string>());
@@ -186,7 +184,7 @@ TEST(Rigd, KillNineMidCaptureThenRecoverAndVerify) {
   ScratchDir dir;
   Rigd rigd(dir.path());
   ASSERT_TRUE(std::filesystem::exists(rigd.socket()));
-  CmdResult r = run_json(rigd.rigctl("start --json " + example("automated_block.yaml")));
+  CmdResult r = run_json(rigd.rigctl("start --json " + example_arg("automated_block.yaml")));
   ASSERT_EQ(r.exit_code, 0) << r.out;
   Result<Json> started = parse_json(r.out, "start");
   ASSERT_TRUE(started.ok());
@@ -258,7 +256,7 @@ TEST(Rigd, EstopFromAHalfClosedClientStopsTheCapture) {
     c.shutdown_write();
     EXPECT_NE(c.read_until_closed(5000).find("\"ok\":true"), std::string::npos) << i;
   }
-  ASSERT_EQ(run_json(rigd.rigctl("start " + example("automated_block.yaml"))).exit_code, 0);
+  ASSERT_EQ(run_json(rigd.rigctl("start " + example_arg("automated_block.yaml"))).exit_code, 0);
   for (int i = 0; i < 400 && status_of(rigd).value("state", std::string()) != "running"; ++i)
     std::this_thread::sleep_for(std::chrono::milliseconds(25));
   // Estop the same way, mid-capture (before the fix: ignored 5/5, the capture kept running).
@@ -277,7 +275,7 @@ TEST(Rigd, EstopFromAHalfClosedClientStopsTheCapture) {
   EXPECT_EQ(st["last_session"]["state"], "aborted") << st.dump(2);
   EXPECT_EQ(st["last_session"]["trip"]["kind"], "estop");
   // Starts wait for `rigctl reset`, and the refusal says so.
-  CmdResult again = run(rigd.rigctl("start " + example("automated_block.yaml")));
+  CmdResult again = run(rigd.rigctl("start " + example_arg("automated_block.yaml")));
   EXPECT_EQ(again.exit_code, 1) << again.out;
   EXPECT_NE(again.out.find("safety stop (estop"), std::string::npos) << again.out;
   EXPECT_NE(again.out.find("rigctl reset"), std::string::npos) << again.out;

@@ -24,10 +24,6 @@ using testing::check_association;
 using testing::json_of;
 using testing::read_session;
 
-std::filesystem::path example(const std::string& name) {
-  return hc::testing::source_dir() / "rig_daemon/examples" / name;
-}
-
 std::unique_ptr<Daemon> make_daemon(const std::filesystem::path& dir,
                                     const std::string& extra = "") {
   Result<RigConfig> cfg =
@@ -54,7 +50,7 @@ TEST(Session, HandHeldAllAssociates) {
   ScratchDir dir;
   auto d = make_daemon(dir.path());
   ASSERT_TRUE(d);
-  Result<Plan> plan = load_plan(example("hand_held_face.yaml"));
+  Result<Plan> plan = load_plan(hc::testing::rig_example("hand_held_face.yaml"));
   ASSERT_TRUE(plan.ok());
   Json s = run_plan(*d, *plan);
   EXPECT_EQ(s["state"], "finished") << s.dump(2);
@@ -76,7 +72,7 @@ using devices::sim::Fault;
 TEST(Session, HandHeldFileAssociatesIndependently) {
   ScratchDir dir;
   auto d = make_daemon(dir.path());
-  Result<Plan> plan = load_plan(example("hand_held_face.yaml"));
+  Result<Plan> plan = load_plan(hc::testing::rig_example("hand_held_face.yaml"));
   ASSERT_TRUE(plan.ok());
   Json s = run_plan(*d, *plan);
   ASSERT_EQ(s["state"], "finished") << s.dump(2);
@@ -96,7 +92,7 @@ TEST(Session, HandHeldFileAssociatesIndependently) {
 TEST(Session, AutomatedFileAssociatesIndependentlyAndReachesTheForces) {
   ScratchDir dir;
   auto d = make_daemon(dir.path());
-  Result<Plan> plan = load_plan(example("automated_block.yaml"));
+  Result<Plan> plan = load_plan(hc::testing::rig_example("automated_block.yaml"));
   ASSERT_TRUE(plan.ok());
   Json s = run_plan(*d, *plan);
   ASSERT_EQ(s["state"], "finished") << s.dump(2);
@@ -123,7 +119,7 @@ TEST(Session, AutomatedFileAssociatesIndependentlyAndReachesTheForces) {
 TEST(Session, SameInputsGiveTheSameMessages) {
   // Simulated time + seeded world: a session recorded twice is message-for-message identical.
   ScratchDir a, b;
-  Result<Plan> plan = load_plan(example("hand_held_face.yaml"));
+  Result<Plan> plan = load_plan(hc::testing::rig_example("hand_held_face.yaml"));
   ASSERT_TRUE(plan.ok());
   auto da = make_daemon(a.path());
   auto db = make_daemon(b.path());
@@ -414,7 +410,7 @@ TEST(Session, SecondSessionOnOneDaemonAssociatesToo) {
   // sessions of one daemon.
   hc::testing::ScratchDir dir;
   auto d = make_daemon(dir.path());
-  Result<Plan> plan = load_plan(example("hand_held_face.yaml"));
+  Result<Plan> plan = load_plan(hc::testing::rig_example("hand_held_face.yaml"));
   ASSERT_TRUE(plan.ok());
   for (int i = 0; i < 2; ++i) {
     Json s = run_plan(*d, *plan);
@@ -433,7 +429,7 @@ namespace {
 
 TEST(Replay, ReRecordingAReplayReproducesTheMessages) {
   hc::testing::ScratchDir dir;
-  Result<Plan> plan = load_plan(example("hand_held_face.yaml"));
+  Result<Plan> plan = load_plan(hc::testing::rig_example("hand_held_face.yaml"));
   ASSERT_TRUE(plan.ok());
   auto live = make_daemon(dir / "live");
   const std::string original = run_plan(*live, *plan)["session"].get<std::string>();
@@ -479,7 +475,7 @@ TEST(Session, CalibrationCaptureShowsTheBoardInEveryFrameSet) {
   ScratchDir dir;
   auto d = make_daemon(dir.path());
   ASSERT_TRUE(d);
-  Result<Plan> plan = load_plan(example("calibration_board.yaml"));
+  Result<Plan> plan = load_plan(hc::testing::rig_example("calibration_board.yaml"));
   ASSERT_TRUE(plan.ok()) << plan.status().to_string();
   ASSERT_EQ(plan->protocol, Protocol::kCalibration);
   EXPECT_EQ(plan->expected_triggers(), 20);
@@ -570,7 +566,7 @@ TEST(Session, AutomatedTruthCarriesTheProbeAndPerCameraOcclusion) {
   ScratchDir dir;
   auto d = make_daemon(dir.path());
   ASSERT_TRUE(d);
-  Result<Plan> plan = load_plan(example("automated_track.yaml"));
+  Result<Plan> plan = load_plan(hc::testing::rig_example("automated_track.yaml"));
   ASSERT_TRUE(plan.ok()) << plan.status().to_string();
   const Json s = run_plan(*d, *plan);
   ASSERT_EQ(s["state"], "finished") << s.dump(2);

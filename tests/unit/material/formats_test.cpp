@@ -72,7 +72,7 @@ TEST(SamplesFormat, RoundTripInline) {
 }
 
 TEST(SamplesFormat, TetgenMeshReference) {
-  testing::ScratchDir dir;
+  hc::testing::ScratchDir dir;
   ASSERT_TRUE(write_tetgen(dir / "block", two_tets()).ok());
   Samples s = small_samples();
   s.node_file = "block.node";
@@ -131,7 +131,7 @@ TEST(SamplesFormat, MalformedInputsAreRefusedWithTheirPath) {
 }
 
 TEST(SamplesFormat, SaveRefusesInvalidAndWritesNothing) {
-  testing::ScratchDir dir;
+  hc::testing::ScratchDir dir;
   Samples s = small_samples();
   s.examples[0].forces[0].force_n.x() = std::nan("");
   Status st = save_samples(dir / "bad.json", s);
@@ -188,7 +188,7 @@ TEST(MaterialFormat, BaseMaterialAppliesToAnyElement) {
   m.kind = MaterialKind::kBase;
   m.rbfs = {sample_rbf()};
   m.names = {"foam"};
-  testing::ScratchDir dir;
+  hc::testing::ScratchDir dir;
   ASSERT_TRUE(save_material(dir / "base.json", m).ok());
   Result<std::unique_ptr<fem::MaterialModel>> model = load_material(dir / "base.json");
   ASSERT_TRUE(model.ok()) << model.status().to_string();

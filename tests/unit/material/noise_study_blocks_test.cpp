@@ -22,7 +22,7 @@ namespace {
 using testing::kNoise;
 using testing::kThesis;
 
-struct Block {
+struct StudyBlock {
   const char* name;
   int nx, ny, nz;
   Eigen::Vector3d size;
@@ -33,19 +33,38 @@ struct Block {
 };
 
 // E in Pa, ν, stiffening β per layer; none of these was used to choose any fit setting.
-std::vector<Block> blocks() {
-  return {{"300 tets, two layers", 5, 5, 2, {0.05, 0.05, 0.02},
-           {{0.0, 0.008, {200e3, 0.3, 2.0}}, {0.008, 0.02, {40e3, 0.4, 6.0}}}, 0.008, 1.5, 31},
-          {"1,200 tets, three layers", 10, 5, 4, {0.06, 0.03, 0.024},
+std::vector<StudyBlock> blocks() {
+  return {{"300 tets, two layers",
+           5,
+           5,
+           2,
+           {0.05, 0.05, 0.02},
+           {{0.0, 0.008, {200e3, 0.3, 2.0}}, {0.008, 0.02, {40e3, 0.4, 6.0}}},
+           0.008,
+           1.5,
+           31},
+          {"1,200 tets, three layers",
+           10,
+           5,
+           4,
+           {0.06, 0.03, 0.024},
            {{0.0, 0.006, {80e3, 0.35, 3.0}},
             {0.006, 0.016, {250e3, 0.25, 1.0}},
             {0.016, 0.024, {40e3, 0.3, 8.0}}},
-           0.008, 2.0, 32},
-          {"3,000 tets, three layers", 10, 10, 5, {0.05, 0.05, 0.025},
+           0.008,
+           2.0,
+           32},
+          {"3,000 tets, three layers",
+           10,
+           10,
+           5,
+           {0.05, 0.05, 0.025},
            {{0.0, 0.005, {300e3, 0.3, 1.0}},
             {0.005, 0.017, {50e3, 0.4, 4.0}},
             {0.017, 0.025, {120e3, 0.3, 2.0}}},
-           0.01, 3.0, 33}};
+           0.01,
+           3.0,
+           33}};
 }
 
 double fit_error(const Samples& clean, int k, std::uint64_t seed) {
@@ -60,9 +79,9 @@ double fit_error(const Samples& clean, int k, std::uint64_t seed) {
 TEST(NoiseStudyBlocks, MeanErrorsNoWorseThanTheThesis) {
   HC_SKIP_WHEN_SANITIZED("~10x slower: heterogeneous fits up to 3,000 tets");
   double sum[4] = {0, 0, 0, 0};
-  std::vector<Block> all = blocks();
+  std::vector<StudyBlock> all = blocks();
   if (!hc::testing::long_tests()) all.resize(1);
-  for (const Block& b : all) {
+  for (const StudyBlock& b : all) {
     testing::HyperelasticReference ref;
     ref.mesh = testing::box_mesh(b.nx, b.ny, b.nz, b.size.x(), b.size.y(), b.size.z());
     ref.layers = b.layers;

@@ -9,14 +9,17 @@
 
 #include "fabrication/printability/mesh_check.h"
 #include "fabrication/printability/mesh_repair.h"
+#include "printability_test_util.h"
 #include "synthetic_meshes.h"
 
 namespace hc::fabrication {
 namespace {
 
 using testing::box;
+using testing::check;
 using testing::flip;
 using testing::join;
+using testing::repair;
 using testing::unit_cube;
 
 // Corners of the unit right tetrahedron, faces outward (normals -z, -y, -x, (1,1,1)).
@@ -74,12 +77,6 @@ TriangleMesh torus(int n, int m, double big_r, double small_r) {
     }
   }
   return t;
-}
-
-MeshCheckReport check(const TriangleMesh& m, MeshCheckOptions options = {}) {
-  auto r = check_mesh(m, options);
-  EXPECT_TRUE(r.ok()) << r.status().to_string();
-  return r.ok() ? *r : MeshCheckReport{};
 }
 
 TEST(MeshCheck, UnitCube) {
@@ -362,13 +359,6 @@ TEST(MeshCheck, JsonAndText) {
 }
 
 // --- repair ---------------------------------------------------------------------------------
-
-MeshRepairSummary repair(TriangleMesh* m, MeshRepairOptions options = {}) {
-  MeshRepairSummary s;
-  const Status st = repair_mesh(options, m, &s);
-  EXPECT_TRUE(st.ok()) << st.to_string();
-  return s;
-}
 
 // Each triangle with its own three corners, as an STL file stores them.
 TriangleMesh unwelded(const TriangleMesh& m) {

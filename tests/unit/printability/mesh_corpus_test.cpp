@@ -11,11 +11,14 @@
 #include "common/mesh_io.h"
 #include "fabrication/printability/mesh_check.h"
 #include "fabrication/printability/mesh_repair.h"
-#include "test_data.h"
+#include "printability_test_util.h"
 #include "sanitizer.h"
+#include "test_data.h"
 
 namespace hc::fabrication {
 namespace {
+
+using testing::check;
 
 // What is known of a corpus mesh, each fact with its source; unset fields are not known.
 struct Expected {
@@ -61,12 +64,6 @@ TriangleMesh read(const std::filesystem::path& path) {
   auto mesh = read_mesh(path);
   EXPECT_TRUE(mesh.ok()) << mesh.status().to_string();
   return mesh.ok() ? std::move(mesh).value() : TriangleMesh{};
-}
-
-MeshCheckReport check(const TriangleMesh& mesh) {
-  auto report = check_mesh(mesh);
-  EXPECT_TRUE(report.ok()) << report.status().to_string();
-  return report.ok() ? *report : MeshCheckReport{};
 }
 
 TEST(MeshCorpus, EveryMeshIsKnown) {

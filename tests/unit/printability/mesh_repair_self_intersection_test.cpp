@@ -14,6 +14,7 @@
 #include "common/mesh_io.h"
 #include "fabrication/printability/mesh_check.h"
 #include "fabrication/printability/mesh_repair.h"
+#include "printability_test_util.h"
 #include "synthetic_meshes.h"
 #include "test_data.h"
 
@@ -23,14 +24,8 @@ namespace {
 using testing::box;
 using testing::flip;
 using testing::join;
+using testing::repair;
 using testing::unit_cube;
-
-MeshRepairSummary repair(TriangleMesh* m, MeshRepairOptions options = {}) {
-  MeshRepairSummary s;
-  const Status st = repair_mesh(options, m, &s);
-  EXPECT_TRUE(st.ok()) << st.to_string();
-  return s;
-}
 
 MeshRepairOptions resolving() {
   MeshRepairOptions options;

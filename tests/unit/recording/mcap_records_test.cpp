@@ -14,11 +14,6 @@
 namespace hc::recording {
 namespace {
 
-Bytes read_all(const std::filesystem::path& p) {
-  std::ifstream in(p, std::ios::binary);
-  return Bytes(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
-}
-
 Bytes bytes_of(std::string_view s) { return Bytes(s.begin(), s.end()); }
 
 const std::filesystem::path kPeerFile =
@@ -54,7 +49,7 @@ std::vector<std::pair<std::uint64_t, RecordView>> records_of(const Bytes& file) 
 
 // Decoding then re-encoding each record of the peer's file gives the same bytes.
 TEST(McapRecords, ByteExactAgainstReferenceWriter) {
-  const Bytes file = read_all(kPeerFile);
+  const Bytes file = testing::read_bytes(kPeerFile);
   ASSERT_GT(file.size(), 100u);
   const auto recs = records_of(file);
   // Opcode sequence as written by @mcap/core 2.2.2 (inspected: header, one chunk, its message

@@ -22,20 +22,12 @@ namespace {
 
 using testing::ScratchDir;
 
-Bytes read_all(const std::filesystem::path& p) {
-  std::ifstream in(p, std::ios::binary);
-  return Bytes(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
-}
-void write_all(const std::filesystem::path& p, ByteSpan b) {
-  std::ofstream out(p, std::ios::binary);
-  out.write(reinterpret_cast<const char*>(b.data()), static_cast<std::streamsize>(b.size()));
-}
-
 constexpr int kForce = 400;  // samples at 1 kHz
 constexpr int kFrames = 12;  // 32x24 mono8 frames at 30 Hz
 
 // A session with a JSON force channel and a RawImage camera channel, small chunks.
-void write_session(const std::filesystem::path& path, Compression c, std::uint64_t chunk_size) {
+void write_chunked_session(const std::filesystem::path& path, Compression c,
+                           std::uint64_t chunk_size) {
   McapWriter::Options opt;
   opt.compression = c;
   opt.chunk_size = chunk_size;
@@ -95,7 +87,7 @@ std::uint64_t count_messages(const std::filesystem::path& p) {
 TEST(McapVerify, WellFormedSessionPasses) {
   ScratchDir dir;
   for (Compression c : {Compression::kNone, Compression::kLz4, Compression::kZstd}) {
-    write_session(dir / "s.mcap", c, 2048);
+    write_chunked_session(dir / "s.mcap", c, 2048);
     auto v = verify(dir / "s.mcap");
     ASSERT_TRUE(v.ok());
     EXPECT_TRUE(v->ok) << (v->problems.empty() ? "" : v->problems[0]);
@@ -107,8 +99,8 @@ TEST(McapVerify, WellFormedSessionPasses) {
 // valid file holding exactly the messages of the complete chunks.
 TEST(McapRecover, TruncationAtEveryChunkBoundary) {
   ScratchDir dir;
-  write_session(dir / "s.mcap", Compression::kZstd, 3000);
-  const Bytes full = read_all(dir / "s.mcap");
+  write_chunked_session(dir / "s.mcap", Compression::kZstd, 3000);
+  const Bytes full = testing::read_bytes(dir / "s.mcap");
   auto reader = McapReader::open(dir / "s.mcap");
   ASSERT_TRUE(reader.ok());
   const auto& cis = reader->summary().chunk_indexes;
@@ -140,7 +132,7 @@ TEST(McapRecover, TruncationAtEveryChunkBoundary) {
                         {end_of_chunk, complete + per_chunk[k]}};
     for (const Cut& cut : cuts) {
       SCOPED_TRACE("chunk " + std::to_string(k) + " cut at " + std::to_string(cut.at));
-      write_all(dir / "cut.mcap", ByteSpan(full).first(cut.at));
+      testing::write_bytes(dir / "cut.mcap", ByteSpan(full).first(cut.at));
       // The cut file itself fails verify (exit 1 in the CLI) ...
       auto bad = verify(dir / "cut.mcap");
       ASSERT_TRUE(bad.ok());
@@ -186,8 +178,8 @@ TEST(McapRecover, TruncationAtEveryChunkBoundary) {
 
 TEST(McapRecover, DropsCorruptChunkAndRefusesNonMcap) {
   ScratchDir dir;
-  write_session(dir / "s.mcap", Compression::kNone, 3000);
-  Bytes full = read_all(dir / "s.mcap");
+  write_chunked_session(dir / "s.mcap", Compression::kNone, 3000);
+  Bytes full = testing::read_bytes(dir / "s.mcap");
   auto reader = McapReader::open(dir / "s.mcap");
   ASSERT_TRUE(reader.ok());
   const auto ci = reader->summary().chunk_indexes[2];
@@ -196,7 +188,7 @@ TEST(McapRecover, DropsCorruptChunkAndRefusesNonMcap) {
   ASSERT_TRUE(indexes.ok());
   for (const auto& mi : *indexes) lost += mi.records.size();
   full[ci.chunk_start_offset + ci.chunk_length - 10] ^= 0xFF;  // payload byte of chunk 2
-  write_all(dir / "bad.mcap", full);
+  testing::write_bytes(dir / "bad.mcap", full);
   auto rep = recover(dir / "bad.mcap", dir / "rec.mcap", {});
   ASSERT_TRUE(rep.ok());
   EXPECT_EQ(rep->chunks_dropped, 1u);
@@ -204,7 +196,7 @@ TEST(McapRecover, DropsCorruptChunkAndRefusesNonMcap) {
   auto v = verify(dir / "rec.mcap");
   ASSERT_TRUE(v.ok());
   EXPECT_TRUE(v->ok);
-  write_all(dir / "junk.mcap", Bytes(100, 'x'));
+  testing::write_bytes(dir / "junk.mcap", Bytes(100, 'x'));
   auto r = recover(dir / "junk.mcap", dir / "out.mcap", {});
   ASSERT_FALSE(r.ok());
   EXPECT_FALSE(std::filesystem::exists(dir / "out.mcap"));
@@ -216,8 +208,8 @@ TEST(McapRecover, CorruptFirstChunkLosesOnlyItsOwnMessages) {
   // flipped byte in the first chunk must cost that chunk's messages only (before the fix every
   // later message was dropped: "their channel definition was lost").
   ScratchDir dir;
-  write_session(dir / "s.mcap", Compression::kNone, 3000);
-  Bytes full = read_all(dir / "s.mcap");
+  write_chunked_session(dir / "s.mcap", Compression::kNone, 3000);
+  Bytes full = testing::read_bytes(dir / "s.mcap");
   auto reader = McapReader::open(dir / "s.mcap");
   ASSERT_TRUE(reader.ok());
   ASSERT_GE(reader->summary().chunk_indexes.size(), 4u);
@@ -228,7 +220,7 @@ TEST(McapRecover, CorruptFirstChunkLosesOnlyItsOwnMessages) {
   for (const auto& mi : *indexes) lost += mi.records.size();
   ASSERT_GT(lost, 0u);
   full[ci.chunk_start_offset + ci.chunk_length - 10] ^= 0x01;  // one bit of chunk 0's payload
-  write_all(dir / "bad.mcap", full);
+  testing::write_bytes(dir / "bad.mcap", full);
   auto rep = recover(dir / "bad.mcap", dir / "rec.mcap", {});
   ASSERT_TRUE(rep.ok()) << rep.status().to_string();
   EXPECT_EQ(rep->chunks_dropped, 1u);
@@ -272,7 +264,7 @@ TEST(McapRecover, DefinitionsFromALaterChunkOfACutFile) {
   for (const Bytes& b : {first, chunk(false, 200), chunk(true, 300)})
     file.insert(file.end(), b.begin(), b.end());
   ScratchDir dir;
-  write_all(dir / "cut.mcap", file);
+  testing::write_bytes(dir / "cut.mcap", file);
   auto rep = recover(dir / "cut.mcap", dir / "rec.mcap", {});
   ASSERT_TRUE(rep.ok()) << rep.status().to_string();
   EXPECT_EQ(rep->chunks_kept, 2u);
@@ -286,8 +278,8 @@ TEST(McapRecover, MagicFollowedByNoHeaderIsNotMcap) {
   // The magic, then something that is not a Header record: refused, nothing written (before the
   // fix: an empty file and success).
   ScratchDir dir;
-  write_session(dir / "s.mcap", Compression::kNone, 3000);
-  const Bytes full = read_all(dir / "s.mcap");
+  write_chunked_session(dir / "s.mcap", Compression::kNone, 3000);
+  const Bytes full = testing::read_bytes(dir / "s.mcap");
   struct Case {
     const char* name;
     Bytes bytes;
@@ -318,7 +310,7 @@ TEST(McapRecover, MagicFollowedByNoHeaderIsNotMcap) {
   for (const Case& c : cases) {
     const std::filesystem::path in = dir / (std::string(c.name) + ".mcap");
     const std::filesystem::path out = dir / (std::string(c.name) + "-rec.mcap");
-    write_all(in, c.bytes);
+    testing::write_bytes(in, c.bytes);
     auto r = recover(in, out, {});
     ASSERT_FALSE(r.ok()) << c.name;
     EXPECT_EQ(r.status().code(), StatusCode::kInvalidArgument) << c.name;
@@ -329,7 +321,7 @@ TEST(McapRecover, MagicFollowedByNoHeaderIsNotMcap) {
       EXPECT_EQ(e.path().filename().string().find(".tmp-"), std::string::npos) << e.path();
   }
   // A file cut inside its Header is a crash at creation: an empty but valid session.
-  write_all(dir / "cut_header.mcap", ByteSpan(full).first(12));
+  testing::write_bytes(dir / "cut_header.mcap", ByteSpan(full).first(12));
   auto cut = recover(dir / "cut_header.mcap", dir / "cut-rec.mcap", {});
   ASSERT_TRUE(cut.ok()) << cut.status().to_string();
   EXPECT_EQ(count_messages(dir / "cut-rec.mcap"), 0u);
@@ -338,8 +330,8 @@ TEST(McapRecover, MagicFollowedByNoHeaderIsNotMcap) {
 // Each kind of damage is reported, naming the offset.
 TEST(McapVerify, DetectsCorruption) {
   ScratchDir dir;
-  write_session(dir / "s.mcap", Compression::kNone, 3000);
-  const Bytes full = read_all(dir / "s.mcap");
+  write_chunked_session(dir / "s.mcap", Compression::kNone, 3000);
+  const Bytes full = testing::read_bytes(dir / "s.mcap");
   auto reader = McapReader::open(dir / "s.mcap");
   ASSERT_TRUE(reader.ok());
   const auto& sum = reader->summary();
@@ -371,7 +363,7 @@ TEST(McapVerify, DetectsCorruption) {
     SCOPED_TRACE(c.name);
     Bytes bad = full;
     bad[c.offset] ^= 0x01;
-    write_all(dir / "bad.mcap", bad);
+    testing::write_bytes(dir / "bad.mcap", bad);
     auto v = verify(dir / "bad.mcap");
     ASSERT_TRUE(v.ok()) << v.status().to_string();
     EXPECT_FALSE(v->ok);
@@ -381,7 +373,7 @@ TEST(McapVerify, DetectsCorruption) {
     for (const auto& p : v->problems) EXPECT_EQ(p.rfind("offset ", 0), 0u) << p;
   }
   // Not MCAP at all: an error, not a report.
-  write_all(dir / "junk.mcap", Bytes(64, 'j'));
+  testing::write_bytes(dir / "junk.mcap", Bytes(64, 'j'));
   EXPECT_FALSE(verify(dir / "junk.mcap").ok());
   EXPECT_FALSE(verify(dir / "missing.mcap").ok());
 }
@@ -389,8 +381,8 @@ TEST(McapVerify, DetectsCorruption) {
 TEST(McapVerify, StatisticsMismatchWithoutCrcs) {
   // A file whose summary CRC is 0 (not computed) and whose Statistics lie: verify still catches it.
   ScratchDir dir;
-  write_session(dir / "s.mcap", Compression::kLz4, 4000);
-  Bytes full = read_all(dir / "s.mcap");
+  write_chunked_session(dir / "s.mcap", Compression::kLz4, 4000);
+  Bytes full = testing::read_bytes(dir / "s.mcap");
   const std::uint64_t footer = full.size() - kFooterAndMagicSize;
   for (int i = 0; i < 4; ++i)
     full[footer + 9 + 16 + static_cast<std::uint64_t>(i)] = 0;  // summary_crc = 0
@@ -408,7 +400,7 @@ TEST(McapVerify, StatisticsMismatchWithoutCrcs) {
     off += r.size;
   }
   ASSERT_LT(off, f.summary_offset_start);
-  write_all(dir / "bad.mcap", full);
+  testing::write_bytes(dir / "bad.mcap", full);
   auto v = verify(dir / "bad.mcap");
   ASSERT_TRUE(v.ok());
   EXPECT_FALSE(v->ok);
@@ -418,7 +410,7 @@ TEST(McapVerify, StatisticsMismatchWithoutCrcs) {
 
 TEST(SessionInfo, CountsRatesAndDeviceStats) {
   ScratchDir dir;
-  write_session(dir / "s.mcap", Compression::kZstd, 4000);
+  write_chunked_session(dir / "s.mcap", Compression::kZstd, 4000);
   auto info = session_info(dir / "s.mcap");
   ASSERT_TRUE(info.ok()) << info.status().to_string();
   EXPECT_TRUE(info->has_summary);
@@ -440,8 +432,8 @@ TEST(SessionInfo, CountsRatesAndDeviceStats) {
   EXPECT_EQ(info->device_stats[1].late, 1u);
   EXPECT_EQ(info->metadata_names, (std::vector<std::string>{"plan", "device_stats"}));
   // A truncated file still gets info (linear scan), with fewer messages.
-  const Bytes full = read_all(dir / "s.mcap");
-  write_all(dir / "t.mcap", ByteSpan(full).first(full.size() / 2));
+  const Bytes full = testing::read_bytes(dir / "s.mcap");
+  testing::write_bytes(dir / "t.mcap", ByteSpan(full).first(full.size() / 2));
   auto t = session_info(dir / "t.mcap");
   ASSERT_TRUE(t.ok()) << t.status().to_string();
   EXPECT_FALSE(t->has_summary);
@@ -466,7 +458,7 @@ std::vector<std::uint8_t> decode_png(const std::string& bytes, std::uint32_t& w,
 
 TEST(SessionExport, FramesAppearWithTheirIndexAndAKilledExportIsCleanedUp) {
   ScratchDir dir;
-  write_session(dir / "s.mcap", Compression::kZstd, 4000);
+  write_chunked_session(dir / "s.mcap", Compression::kZstd, 4000);
   // What an export killed by kill -9 left: its staging folder with some frames (before the fix:
   // frames in out/ without camera_0_image_frames.csv, and *.png.tmp-* files).
   const pid_t dead = ::fork();
@@ -475,7 +467,7 @@ TEST(SessionExport, FramesAppearWithTheirIndexAndAKilledExportIsCleanedUp) {
   const std::filesystem::path stale =
       dir / "out" / ("camera_0_image.tmp-" + std::to_string(dead) + "-0badf00d");
   std::filesystem::create_directories(stale);
-  write_all(stale / "camera_0_image_000000.png", Bytes(10, 1));
+  testing::write_bytes(stale / "camera_0_image_000000.png", Bytes(10, 1));
   auto png = export_channel(dir / "s.mcap", "/camera/0/image", dir / "out");
   ASSERT_TRUE(png.ok()) << png.status().to_string();
   EXPECT_FALSE(std::filesystem::exists(stale));
@@ -490,7 +482,7 @@ TEST(SessionExport, FramesAppearWithTheirIndexAndAKilledExportIsCleanedUp) {
 
 TEST(SessionExport, CsvAndPng) {
   ScratchDir dir;
-  write_session(dir / "s.mcap", Compression::kZstd, 4000);
+  write_chunked_session(dir / "s.mcap", Compression::kZstd, 4000);
   auto csv = export_channel(dir / "s.mcap", "/ft/wrench", dir / "out");
   ASSERT_TRUE(csv.ok()) << csv.status().to_string();
   EXPECT_EQ(csv->kind, "csv");

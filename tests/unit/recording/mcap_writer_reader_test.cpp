@@ -20,15 +20,6 @@ namespace {
 
 using testing::ScratchDir;
 
-Bytes read_all(const std::filesystem::path& p) {
-  std::ifstream in(p, std::ios::binary);
-  return Bytes(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
-}
-void write_all(const std::filesystem::path& p, ByteSpan b) {
-  std::ofstream out(p, std::ios::binary);
-  out.write(reinterpret_cast<const char*>(b.data()), static_cast<std::streamsize>(b.size()));
-}
-
 struct Written {
   std::uint16_t channel;
   std::uint32_t sequence;
@@ -237,7 +228,7 @@ TEST(McapWriter, BackgroundCompressionWritesIdenticalBytes) {
     write_session(dir / "inline.mcap", opt);
     opt.compression_threads = 2;
     write_session(dir / "threads.mcap", opt);
-    EXPECT_EQ(read_all(dir / "inline.mcap"), read_all(dir / "threads.mcap"));
+    EXPECT_EQ(testing::read_bytes(dir / "inline.mcap"), testing::read_bytes(dir / "threads.mcap"));
   }
 }
 
@@ -409,7 +400,7 @@ TEST(McapReader, ReadsConformanceTenMessages) {
   EXPECT_EQ(got, want);
   // The file's stored CRCs (from the conformance suite) verify.
   ScratchDir dir;
-  write_all(dir / "ten.mcap", file);
+  testing::write_bytes(dir / "ten.mcap", file);
   auto v = verify(dir / "ten.mcap");
   ASSERT_TRUE(v.ok());
   EXPECT_TRUE(v->ok) << (v->problems.empty() ? "" : v->problems[0]);
@@ -419,8 +410,8 @@ TEST(McapReader, ReadsConformanceTenMessages) {
 TEST(McapReader, MalformedFiles) {
   ScratchDir dir;
   // Not MCAP.
-  write_all(dir / "a.mcap", Bytes{'h', 'e', 'l', 'l', 'o', ' ', 'w', 'o', 'r', 'l', 'd', '!', '!',
-                                  '!', '!', '!', '!', '!'});
+  testing::write_bytes(dir / "a.mcap", Bytes{'h', 'e', 'l', 'l', 'o', ' ', 'w', 'o', 'r', 'l', 'd',
+                                             '!', '!', '!', '!', '!', '!', '!'});
   auto r = McapReader::open(dir / "a.mcap");
   ASSERT_FALSE(r.ok());
   EXPECT_NE(r.status().message().find("bad magic"), std::string::npos);
@@ -430,8 +421,8 @@ TEST(McapReader, MalformedFiles) {
   McapWriter::Options opt;
   opt.chunk_size = 4096;
   const auto written = write_session(dir / "s.mcap", opt);
-  Bytes full = read_all(dir / "s.mcap");
-  write_all(dir / "t.mcap", ByteSpan(full).first(full.size() / 2));
+  Bytes full = testing::read_bytes(dir / "s.mcap");
+  testing::write_bytes(dir / "t.mcap", ByteSpan(full).first(full.size() / 2));
   auto t = McapReader::open(dir / "t.mcap");
   ASSERT_FALSE(t.ok());
   EXPECT_NE(t.status().message().find("recover"), std::string::npos) << t.status().message();

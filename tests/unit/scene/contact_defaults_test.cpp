@@ -31,7 +31,9 @@ double sneddon_sphere_force(double e, double nu, double r, double d) {
 }
 
 // §3: Boussinesq/Sneddon flat punch, F = 2 a E* d.
-double punch_force(double e, double nu, double a, double d) { return 2 * a * e / (1 - nu * nu) * d; }
+double punch_force(double e, double nu, double a, double d) {
+  return 2 * a * e / (1 - nu * nu) * d;
+}
 
 // A block `size` (m) on a fixed base, linear co-rotational material, the probe's reference point
 // 0.5 mm above the top face's centre, by depth, no mesh keys.
@@ -50,7 +52,7 @@ nlohmann::json contact_scene(const Eigen::Vector3d& size, double e, double nu,
           {"steps", 2}};
 }
 
-Result<SimulationResult> run(const nlohmann::json& j) {
+Result<SimulationResult> simulate_scene(const nlohmann::json& j) {
   HC_ASSIGN_OR_RETURN(Scene s, parse_scene(j.dump(), "scene.json", "/tmp"));
   return simulate(s);
 }
@@ -81,15 +83,18 @@ constexpr double kDefaultSettingsTolerance = 0.05;
 // others.
 TEST(ContactDefaults, SphereWithinFivePercentOfSneddon) {
   HC_SKIP_WHEN_SANITIZED("~10x slower: ~40k-tet contact solves");
-  const Case cases[] = {{0.5e6, 0.4, 0.01, 5e-4}, {2e6, 0.3, 0.005, 2e-4}, {50e3, 0.25, 0.02, 1e-3}};
+  const Case cases[] = {
+      {0.5e6, 0.4, 0.01, 5e-4}, {2e6, 0.3, 0.005, 2e-4}, {50e3, 0.25, 0.02, 1e-3}};
   for (const Case& c : cases) {
     const Eigen::Vector3d block = half_space_block(std::sqrt(c.r * c.d));
-    Result<SimulationResult> r = run(contact_scene(block, c.e, c.nu, "sphere", c.r, c.d));
+    Result<SimulationResult> r =
+        simulate_scene(contact_scene(block, c.e, c.nu, "sphere", c.r, c.d));
     ASSERT_TRUE(r.ok()) << r.status().to_string();
     const double expected = sneddon_sphere_force(c.e, c.nu, c.r, c.d);
-    std::printf("sphere E %.3g nu %.2f R %.3g d %.3g: %.5g N vs %.5g N (%+.2f %%), %ld tets, %.1f s\n",
-                c.e, c.nu, c.r, c.d, r->force_n, expected, 100 * (r->force_n / expected - 1),
-                r->mesh_report.tets, r->time_s);
+    std::printf(
+        "sphere E %.3g nu %.2f R %.3g d %.3g: %.5g N vs %.5g N (%+.2f %%), %ld tets, %.1f s\n", c.e,
+        c.nu, c.r, c.d, r->force_n, expected, 100 * (r->force_n / expected - 1),
+        r->mesh_report.tets, r->time_s);
     EXPECT_EQ(r->mesh_report.method, "contact_adaptive");
     EXPECT_NEAR(r->mesh_report.patch_radius_m, std::sqrt(c.r * c.d), 1e-9);
     EXPECT_NEAR(r->force_n, expected, kDefaultSettingsTolerance * expected);
@@ -98,15 +103,17 @@ TEST(ContactDefaults, SphereWithinFivePercentOfSneddon) {
 
 TEST(ContactDefaults, FlatPunchWithinFivePercentOfSneddon) {
   HC_SKIP_WHEN_SANITIZED("~10x slower: ~40k-tet contact solves");
-  const Case cases[] = {{1e6, 0.3, 0.0025, 2.5e-5}, {0.2e6, 0.45, 0.005, 1e-4}, {3e6, 0.35, 0.002, 1e-5}};
+  const Case cases[] = {
+      {1e6, 0.3, 0.0025, 2.5e-5}, {0.2e6, 0.45, 0.005, 1e-4}, {3e6, 0.35, 0.002, 1e-5}};
   for (const Case& c : cases) {
     const Eigen::Vector3d block = half_space_block(c.r);
-    Result<SimulationResult> r = run(contact_scene(block, c.e, c.nu, "flat", c.r, c.d));
+    Result<SimulationResult> r = simulate_scene(contact_scene(block, c.e, c.nu, "flat", c.r, c.d));
     ASSERT_TRUE(r.ok()) << r.status().to_string();
     const double expected = punch_force(c.e, c.nu, c.r, c.d);
-    std::printf("punch E %.3g nu %.2f a %.3g d %.3g: %.5g N vs %.5g N (%+.2f %%), %ld tets, %.1f s\n",
-                c.e, c.nu, c.r, c.d, r->force_n, expected, 100 * (r->force_n / expected - 1),
-                r->mesh_report.tets, r->time_s);
+    std::printf(
+        "punch E %.3g nu %.2f a %.3g d %.3g: %.5g N vs %.5g N (%+.2f %%), %ld tets, %.1f s\n", c.e,
+        c.nu, c.r, c.d, r->force_n, expected, 100 * (r->force_n / expected - 1),
+        r->mesh_report.tets, r->time_s);
     EXPECT_NEAR(r->force_n, expected, kDefaultSettingsTolerance * expected);
   }
 }
@@ -118,12 +125,12 @@ TEST(ContactDefaults, TheDocumentedBoxAnswersByDepthAndByForce) {
   nlohmann::json j = contact_scene({0.1, 0.1, 0.05}, 0.5e6, 0.4, "sphere", 0.01, 5e-4);
   j["steps"] = 1;
   j["specimen"]["max_tet_volume_m3"] = 1e-6;  // explicit keys win: a coarse TetGen mesh
-  Result<SimulationResult> coarse = run(j);
+  Result<SimulationResult> coarse = simulate_scene(j);
   ASSERT_TRUE(coarse.ok()) << coarse.status().to_string();
   EXPECT_EQ(coarse->mesh_report.method, "tetgen");
   EXPECT_GT(coarse->force_n, 0);
   j["load"] = {{"force_n", 0.5}};
-  Result<SimulationResult> by_force = run(j);
+  Result<SimulationResult> by_force = simulate_scene(j);
   ASSERT_TRUE(by_force.ok()) << by_force.status().to_string();
   EXPECT_NEAR(by_force->force_n, 0.5, 1e-3);
 }
@@ -138,7 +145,7 @@ TEST(ContactDefaults, ExplicitCoarseMeshesAnswerAndConverge) {
     nlohmann::json j = contact_scene({0.1, 0.1, 0.05}, 0.5e6, 0.4, "sphere", 0.01, 5e-4);
     j["specimen"]["cells"] = {n, n, (n + 1) / 2};
     j["probe"]["position_m"] = {0.043, 0.057, 0.0605};  // between the nodes of every grid
-    Result<SimulationResult> r = run(j);
+    Result<SimulationResult> r = simulate_scene(j);
     ASSERT_TRUE(r.ok()) << n << " cells: " << r.status().to_string();
     const double error = std::abs(r->force_n / expected - 1);
     std::printf("%d x %d x %d cells: %.4g N (%+.1f %%)\n", n, n, (n + 1) / 2, r->force_n,
@@ -160,8 +167,8 @@ TEST(ContactDefaults, PatchAndSizeFieldFollowTheProbe) {
   EXPECT_NEAR(patch->depth_m, 5e-4, 2e-6);  // 0.887 N is Hertz's force at 0.5 mm
   EXPECT_NEAR(patch->radius_m, std::sqrt(0.01 * patch->depth_m), 1e-12);
   EXPECT_NEAR((patch->centre_m - Eigen::Vector3d(0.05, 0.05, 0.05)).norm(), 0, 2e-4);
-  const meshing::GradedSize size =
-      contact_size_field(*patch, Eigen::AlignedBox3d(Eigen::Vector3d::Zero(), Eigen::Vector3d(0.1, 0.1, 0.05)));
+  const meshing::GradedSize size = contact_size_field(
+      *patch, Eigen::AlignedBox3d(Eigen::Vector3d::Zero(), Eigen::Vector3d(0.1, 0.1, 0.05)));
   EXPECT_NEAR(size(patch->centre_m), patch->radius_m / 4, 1e-12);
   EXPECT_GT(size({0.0, 0.0, 0.0}), 10 * size(patch->centre_m));
   // A probe whose path misses the block says where both are.

@@ -20,7 +20,7 @@ namespace {
 
 using namespace std::chrono_literals;
 
-struct Rig {
+struct ArmRig {
   std::unique_ptr<ModbusArmServer> server;
   std::unique_ptr<ModbusArmClient> client;
   std::uint16_t seq = 0;
@@ -53,10 +53,10 @@ struct Rig {
   }
 };
 
-Rig make_rig() {
+ArmRig make_arm_rig() {
   ModbusArmServerOptions so;
   so.home_speed_m_s = 1.0;  // homing from the start pose takes ~0.11 s
-  Rig rig;
+  ArmRig rig;
   auto server = ModbusArmServer::start(so);
   EXPECT_TRUE(server.ok()) << server.status().to_string();
   if (!server.ok()) return rig;
@@ -71,7 +71,7 @@ Rig make_rig() {
 }
 
 TEST(ModbusArmServer, PowersUpUnhomedAndRefusesMovesUntilHomed) {
-  Rig rig = make_rig();
+  ArmRig rig = make_arm_rig();
   ASSERT_TRUE(rig.client);
   arm::StatusBlock s = rig.status();
   EXPECT_EQ(s.map_version, arm::kMapVersion);
@@ -94,7 +94,7 @@ TEST(ModbusArmServer, PowersUpUnhomedAndRefusesMovesUntilHomed) {
 }
 
 TEST(ModbusArmServer, HomesThenMovesAtTheCommandedSpeed) {
-  Rig rig = make_rig();
+  ArmRig rig = make_arm_rig();
   ASSERT_TRUE(rig.client);
   ASSERT_TRUE(rig.send(arm::Opcode::kHome).ok());
   EXPECT_EQ(rig.status().motion, arm::Motion::kHoming);
@@ -120,7 +120,7 @@ TEST(ModbusArmServer, HomesThenMovesAtTheCommandedSpeed) {
 }
 
 TEST(ModbusArmServer, StopFreezesTheArmMidMove) {
-  Rig rig = make_rig();
+  ArmRig rig = make_arm_rig();
   ASSERT_TRUE(rig.client);
   ASSERT_TRUE(rig.send(arm::Opcode::kHome).ok());
   rig.wait_for(arm::Motion::kHolding);
@@ -140,7 +140,7 @@ TEST(ModbusArmServer, StopFreezesTheArmMidMove) {
 }
 
 TEST(ModbusArmServer, ReportsWorkspaceSpeedUnknownAndInjectedFaults) {
-  Rig rig = make_rig();
+  ArmRig rig = make_arm_rig();
   ASSERT_TRUE(rig.client);
   ASSERT_TRUE(rig.send(arm::Opcode::kHome).ok());
   rig.wait_for(arm::Motion::kHolding);
@@ -160,7 +160,7 @@ TEST(ModbusArmServer, ReportsWorkspaceSpeedUnknownAndInjectedFaults) {
 }
 
 TEST(ModbusArmServer, ClientReconnectsWhenTheControllerComesBack) {
-  Rig rig = make_rig();
+  ArmRig rig = make_arm_rig();
   ASSERT_TRUE(rig.client);
   ASSERT_TRUE(rig.send(arm::Opcode::kHome).ok());
   rig.server->disappear();

@@ -24,14 +24,14 @@ rdt::Wrench test_signal(double t) {
   return w;
 }
 
-struct Rig {
+struct RdtRig {
   std::unique_ptr<RdtServer> server;
   std::unique_ptr<NetFtClient> client;
 };
 
-Rig make_rig(RdtServerOptions so = {}, NetFtOptions co = {}) {
+RdtRig make_rdt_rig(RdtServerOptions so = {}, NetFtOptions co = {}) {
   if (!so.signal) so.signal = test_signal;
-  Rig rig;
+  RdtRig rig;
   auto server = RdtServer::start(so);
   EXPECT_TRUE(server.ok()) << server.status().to_string();
   if (!server.ok()) return rig;
@@ -55,7 +55,7 @@ std::vector<FtSample> collect(NetFtClient& c, std::chrono::milliseconds for_how_
 }
 
 TEST(RdtServer, StreamsAt7kHzWithTheConfiguredSignal) {
-  Rig rig = make_rig();
+  RdtRig rig = make_rdt_rig();
   ASSERT_TRUE(rig.client);
   ASSERT_TRUE(rig.client->start().ok());
   const auto samples = collect(*rig.client, 300ms);
@@ -86,7 +86,7 @@ TEST(RdtServer, BiasSubtractsTheLoadAtThatMoment) {
     w.force_n = {1.0, -2.0, 30.0};
     return w;
   };
-  Rig rig = make_rig(so);
+  RdtRig rig = make_rdt_rig(so);
   ASSERT_TRUE(rig.client);
   ASSERT_TRUE(rig.client->start().ok());
   auto before = collect(*rig.client, 30ms);
@@ -104,7 +104,7 @@ TEST(RdtServer, CalibrationFromTheSensorsHttpDocument) {
   so.calibration = {1'000'000, 1000, "N", "Nmm"};
   NetFtOptions co;
   co.calibration_source = "sensor";
-  Rig rig = make_rig(so, co);
+  RdtRig rig = make_rdt_rig(so, co);
   ASSERT_TRUE(rig.client);
   EXPECT_EQ(rig.client->calibration(), so.calibration);
   ASSERT_TRUE(rig.client->start().ok());
@@ -128,7 +128,7 @@ TEST(RdtServer, BufferedModeAndSampleCount) {
   so.records_per_buffered_packet = 20;
   NetFtOptions co;
   co.buffered = true;
-  Rig rig = make_rig(so, co);
+  RdtRig rig = make_rdt_rig(so, co);
   ASSERT_TRUE(rig.client);
   ASSERT_TRUE(rig.client->start(/*sample_count=*/700).ok());
   auto s = collect(*rig.client, 200ms);  // 700 records at 7 kHz = 0.1 s
@@ -140,7 +140,7 @@ TEST(RdtServer, BufferedModeAndSampleCount) {
 TEST(RdtServer, DroppedPacketsAreCountedExactly) {
   RdtServerOptions so;
   so.seed = 42;
-  Rig rig = make_rig(so);
+  RdtRig rig = make_rdt_rig(so);
   ASSERT_TRUE(rig.client);
   ASSERT_TRUE(rig.client->start().ok());
   rig.server->set_faults({.drop_probability = 0.1});
@@ -155,7 +155,7 @@ TEST(RdtServer, DroppedPacketsAreCountedExactly) {
 }
 
 TEST(RdtServer, ReorderedPacketsAreKeptAndNotCountedLost) {
-  Rig rig = make_rig();
+  RdtRig rig = make_rdt_rig();
   ASSERT_TRUE(rig.client);
   ASSERT_TRUE(rig.client->start().ok());
   rig.server->set_faults({.reorder = true});
@@ -174,7 +174,7 @@ TEST(RdtServer, ReorderedPacketsAreKeptAndNotCountedLost) {
 }
 
 TEST(RdtServer, StalledStreamDeliversNothingThenResumesWithoutAGap) {
-  Rig rig = make_rig();
+  RdtRig rig = make_rdt_rig();
   ASSERT_TRUE(rig.client);
   ASSERT_TRUE(rig.client->start().ok());
   collect(*rig.client, 20ms);
@@ -188,7 +188,7 @@ TEST(RdtServer, StalledStreamDeliversNothingThenResumesWithoutAGap) {
 }
 
 TEST(RdtServer, StatusWordAndLatchReset) {
-  Rig rig = make_rig();
+  RdtRig rig = make_rdt_rig();
   ASSERT_TRUE(rig.client);
   rig.server->set_faults({.status_word = 0x00010000u});
   ASSERT_TRUE(rig.client->start().ok());

@@ -59,6 +59,8 @@ enum class Opcode : std::uint8_t {
   kSummaryOffset = 0x0E,
   kDataEnd = 0x0F,
 };
+// The byte an opcode is written as.
+constexpr std::uint8_t opcode_byte(Opcode o) { return static_cast<std::uint8_t>(o); }
 
 // "Header", "Chunk", ... or "Unknown(0x42)" (the spec lets readers skip unknown opcodes).
 std::string opcode_name(std::uint8_t opcode);
