@@ -14,6 +14,7 @@
 #include <optional>
 #include <set>
 
+#include "common/clock.h"
 #include "common/json.h"
 #include "rig_daemon/recording/foxglove_image.h"
 #include "rig_daemon/recording/mcap_reader.h"
@@ -23,8 +24,6 @@
 namespace hc::calib {
 
 namespace {
-
-using Clock = std::chrono::steady_clock;
 
 bool valid_camera_name(const std::string& name) {
   if (name.empty() || !(std::isalpha(static_cast<unsigned char>(name[0])) || name[0] == '_'))
@@ -139,7 +138,7 @@ Result<std::vector<CameraObservations>> detect_in_images(const std::vector<Image
                                                          const DetectOptions& options,
                                                          ProgressReporter* progress,
                                                          DetectionStats* stats) {
-  const auto t0 = Clock::now();
+  const auto t0 = std::chrono::steady_clock::now();
   std::size_t total = 0;
   std::set<std::string> names;
   for (const ImageSet& s : sets) {
@@ -188,7 +187,7 @@ Result<std::vector<CameraObservations>> detect_in_images(const std::vector<Image
       return invalid_argument(no_board_message(cam, static_cast<int>(s.files.size()), board, ""));
     out.push_back(std::move(cam));
   }
-  st.detect_time_s = std::chrono::duration<double>(Clock::now() - t0).count();
+  st.detect_time_s = seconds_since(t0);
   if (stats) *stats = st;
   return out;
 }
@@ -198,7 +197,7 @@ Result<std::vector<CameraObservations>> detect_in_session(const std::filesystem:
                                                           const DetectOptions& options,
                                                           ProgressReporter* progress,
                                                           DetectionStats* stats) {
-  const auto t0 = Clock::now();
+  const auto t0 = std::chrono::steady_clock::now();
   const std::string file = session.string();
   HC_ASSIGN_OR_RETURN(recording::McapReader reader, recording::McapReader::open(session));
   // Camera channels.
@@ -304,7 +303,7 @@ Result<std::vector<CameraObservations>> detect_in_session(const std::filesystem:
   for (std::size_t i = 0; i < cams.size(); ++i)
     if (cams[i].views.empty())
       return invalid_argument(no_board_message(cams[i], frames[i], board, " in " + file));
-  st.detect_time_s = std::chrono::duration<double>(Clock::now() - t0).count();
+  st.detect_time_s = seconds_since(t0);
   if (stats) *stats = st;
   return cams;
 }

@@ -33,10 +33,6 @@ int opencv_flags(const CalibrationOptions& o) {
 
 }  // namespace
 
-double seconds_since(Clock::time_point t0) {
-  return std::chrono::duration<double>(Clock::now() - t0).count();
-}
-
 double median(std::vector<double> v) {
   if (v.empty()) return 0.0;
   const auto mid = v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2);
@@ -140,7 +136,7 @@ std::vector<ViewReport> CalibrationSummary::outliers() const {
 Result<CalibrationSummary> calibrate_camera_opencv(const CameraObservations& camera,
                                                    const BoardSpec& board,
                                                    const CalibrationOptions& options) {
-  const auto t0 = Clock::now();
+  const auto t0 = std::chrono::steady_clock::now();
   HC_ASSIGN_OR_RETURN(OpenCvCalibration cv_cal, run_opencv(camera, board, options));
   CalibrationSummary s;
   double intr[kIntrinsics];
@@ -183,7 +179,7 @@ Result<CalibrationSummary> stereo_calibrate_opencv(const CameraObservations& a,
                                                    const CameraObservations& b,
                                                    const BoardSpec& board,
                                                    const CalibrationOptions& options) {
-  const auto t0 = Clock::now();
+  const auto t0 = std::chrono::steady_clock::now();
   HC_ASSIGN_OR_RETURN(OpenCvCalibration ca, run_opencv(a, board, options));
   HC_ASSIGN_OR_RETURN(OpenCvCalibration cb, run_opencv(b, board, options));
   std::map<int, const ViewObservation*> vb;

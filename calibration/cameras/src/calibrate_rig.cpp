@@ -401,7 +401,7 @@ void hold_fixed_parameters(const CalibrationOptions& options, JointProblem& join
 }
 
 Status solve_joint(const CalibrationOptions& options, JointProblem& joint, CalibrationSummary& s) {
-  const auto t_solve = Clock::now();
+  const auto t_solve = std::chrono::steady_clock::now();
   ceres::Solver::Options so;
   so.linear_solver_type = ceres::SPARSE_SCHUR;
   so.max_num_iterations = options.max_iterations;
@@ -510,7 +510,7 @@ void camera_std_devs(ceres::Covariance& covariance, std::size_t c, double sigma2
 // sigma^2 = sum r^2 / (residuals - free parameters) as OpenCV's calibrateCameraExtended does.
 void add_std_devs(const CalibrationOptions& options, JointProblem& joint, CalibrationSummary& s) {
   const std::size_t nc = joint.intr.size();
-  const auto t_cov = Clock::now();
+  const auto t_cov = std::chrono::steady_clock::now();
   ProgressTask task(options.progress, "parameter covariance", 0);
   ceres::Covariance::Options co;
   co.algorithm_type = ceres::SPARSE_QR;  // (DENSE_SVD measured 4x slower at 600 parameters)
@@ -546,7 +546,7 @@ Result<CalibrationSummary> calibrate_rig(const std::vector<CameraObservations>& 
                                          const BoardSpec& board,
                                          const CalibrationOptions& options) {
   HC_RETURN_IF_ERROR(check_rig_input(cameras, board));
-  const auto t_init = Clock::now();
+  const auto t_init = std::chrono::steady_clock::now();
   const std::size_t nc = cameras.size();
   CalibrationSummary s;
 

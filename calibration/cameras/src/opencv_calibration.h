@@ -5,16 +5,13 @@
 
 #include <opencv2/core.hpp>
 
-#include <chrono>
 #include <string>
 #include <vector>
 
 #include "calibration/cameras/calibrate.h"
+#include "common/clock.h"
 
 namespace hc::calib {
-
-using Clock = std::chrono::steady_clock;
-double seconds_since(Clock::time_point t0);
 
 constexpr int kIntrinsics = 9;  // fx fy cx cy k1 k2 p1 p2 k3
 

@@ -1,5 +1,4 @@
 #include "fabrication/abstraction/medial_balls.h"
-#include "common/clock.h"
 
 #include <fmt/format.h>
 #include <tbb/blocked_range.h>
@@ -10,6 +9,7 @@
 #include <cmath>
 #include <limits>
 
+#include "common/clock.h"
 #include "geometry/triangulation_2d.h"
 
 namespace hc::abstraction {

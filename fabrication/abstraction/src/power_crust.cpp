@@ -1,5 +1,4 @@
 #include "fabrication/abstraction/power_crust.h"
-#include "common/clock.h"
 
 #include <fmt/format.h>
 #include <tbb/blocked_range.h>
@@ -12,6 +11,7 @@
 #include <unordered_map>
 #include <unordered_set>
 
+#include "common/clock.h"
 #include "fabrication/printability/mesh_check.h"
 #include "geometry/mesh_ops.h"
 

@@ -1,5 +1,4 @@
 #include "processing/fem/verification.h"
-#include "common/clock.h"
 
 #include <algorithm>
 #include <chrono>
@@ -7,6 +6,7 @@
 #include <cstdint>
 #include <numbers>
 
+#include "common/clock.h"
 #include "processing/fem/contact.h"
 #include "processing/fem/corotational.h"
 #include "processing/fem/material_model.h"
