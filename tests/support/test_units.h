@@ -1,11 +1,11 @@
-// Unit factors for writing test inputs in the units their sources use (SI everywhere else).
+// Short names of common/units.h's factors, for test inputs written in the units their sources use.
 #pragma once
 
-#include <numbers>
+#include "common/units.h"
 
 namespace hc::testing {
 
-inline constexpr double kMm = 1e-3;                     // metres per millimetre
-inline constexpr double kDeg = std::numbers::pi / 180;  // radians per degree
+inline constexpr double kMm = units::kMetresPerMillimetre;
+inline constexpr double kDeg = units::kRadiansPerDegree;
 
 }  // namespace hc::testing

@@ -3,11 +3,11 @@
 
 #include <chrono>
 
+#include "common/clock.h"
+
 namespace hc::composite::detail {
 
 using Clock = std::chrono::steady_clock;
-inline double seconds_since(Clock::time_point t0) {
-  return std::chrono::duration<double>(Clock::now() - t0).count();
-}
+using hc::seconds_since;
 
 }  // namespace hc::composite::detail

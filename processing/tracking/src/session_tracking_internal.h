@@ -8,15 +8,12 @@
 #include <cstdint>
 #include <vector>
 
+#include "common/clock.h"
 #include "processing/tracking/session_tracking.h"
 
 namespace hc::tracking {
 
 using Clock = std::chrono::steady_clock;
-
-inline double seconds_since(Clock::time_point t0) {
-  return std::chrono::duration<double>(Clock::now() - t0).count();
-}
 
 // Nodes on the boundary of a tet mesh: those of faces that belong to one tet only.
 std::vector<std::uint8_t> boundary_nodes(const TetMesh& mesh);
