@@ -1,4 +1,5 @@
 #include "calibration/cameras/synthetic.h"
+#include "common/units.h"
 
 #include <Eigen/Geometry>
 #include <numbers>
@@ -9,10 +10,6 @@
 
 namespace hc::calib {
 
-namespace {
-double rad(double deg) { return deg * std::numbers::pi / 180.0; }
-}  // namespace
-
 std::vector<CameraModel> make_half_circle_rig(const SyntheticRigOptions& o) {
   // World: look-at point at the origin, y down; camera at azimuth a and elevation e sits at
   // r (cos e sin a, -sin e, -cos e cos a) and looks at the origin.
@@ -20,8 +17,10 @@ std::vector<CameraModel> make_half_circle_rig(const SyntheticRigOptions& o) {
   Eigen::Matrix3d R0 = Eigen::Matrix3d::Identity();
   Eigen::Vector3d t0 = Eigen::Vector3d::Zero();
   for (int i = 0; i < o.cameras; ++i) {
-    const double a = o.cameras == 1 ? 0.0 : rad(-0.5 * o.arc_deg + o.arc_deg * i / (o.cameras - 1));
-    const double e = rad(o.elevation_deg);
+    const double a = o.cameras == 1
+                         ? 0.0
+                         : units::deg_to_rad(-0.5 * o.arc_deg + o.arc_deg * i / (o.cameras - 1));
+    const double e = units::deg_to_rad(o.elevation_deg);
     const Eigen::Vector3d p = o.radius_m * Eigen::Vector3d(std::cos(e) * std::sin(a), -std::sin(e),
                                                            -std::cos(e) * std::cos(a));
     Eigen::Matrix3d R;
@@ -73,7 +72,7 @@ bool board_visible(const CameraModel& camera, const BoardSpec& board,
   const Eigen::Vector3d centre =
       Rcb * (0.5 * (board.corner(0) + board.corner(board.corner_count() - 1))) + tcb;
   const double cos_angle = Rcb.col(2).dot(centre.normalized());
-  if (cos_angle < std::cos(rad(max_angle_deg))) return false;
+  if (cos_angle < std::cos(units::deg_to_rad(max_angle_deg))) return false;
   for (int id = 0; id < board.corner_count(); ++id) {
     const auto p = camera.project(rig_from_board * board.corner(id));
     if (!p || p->x() < margin_px || p->y() < margin_px || p->x() > camera.width - margin_px ||
@@ -155,17 +154,17 @@ std::vector<Eigen::Isometry3d> random_board_poses(const std::vector<CameraModel>
     const double ax = u(rng), ay = u(rng), az = u(rng);
     Eigen::Matrix3d tilt;
     if (o.per_axis_tilt) {
-      tilt = (Eigen::AngleAxisd(rad(o.max_tilt_deg) * ax, Eigen::Vector3d::UnitX()) *
-              Eigen::AngleAxisd(rad(o.max_tilt_deg) * ay, Eigen::Vector3d::UnitY()) *
-              Eigen::AngleAxisd(rad(o.spin_deg) * az, Eigen::Vector3d::UnitZ()))
+      tilt = (Eigen::AngleAxisd(units::deg_to_rad(o.max_tilt_deg) * ax, Eigen::Vector3d::UnitX()) *
+              Eigen::AngleAxisd(units::deg_to_rad(o.max_tilt_deg) * ay, Eigen::Vector3d::UnitY()) *
+              Eigen::AngleAxisd(units::deg_to_rad(o.spin_deg) * az, Eigen::Vector3d::UnitZ()))
                  .toRotationMatrix();
     } else {
       // Tilt of a magnitude in [min, max] about a random axis in the board plane.
       const double azimuth = std::numbers::pi * ax;
       const double angle =
-          rad(o.min_tilt_deg + 0.5 * (ay + 1.0) * (o.max_tilt_deg - o.min_tilt_deg));
+          units::deg_to_rad(o.min_tilt_deg + 0.5 * (ay + 1.0) * (o.max_tilt_deg - o.min_tilt_deg));
       tilt = (Eigen::AngleAxisd(angle, Eigen::Vector3d(std::cos(azimuth), std::sin(azimuth), 0.0)) *
-              Eigen::AngleAxisd(rad(o.spin_deg) * az, Eigen::Vector3d::UnitZ()))
+              Eigen::AngleAxisd(units::deg_to_rad(o.spin_deg) * az, Eigen::Vector3d::UnitZ()))
                  .toRotationMatrix();
     }
     Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
@@ -226,7 +225,7 @@ SyntheticRigOptions capture_rig_options(int cameras) {
   o.cameras = cameras;
   // rig_sim_hires.yaml: centres 0.22 m from the axis and 0.195 m above the look-at point.
   o.radius_m = std::hypot(0.22, 0.195);
-  o.elevation_deg = std::atan2(0.195, 0.22) * 180.0 / std::numbers::pi;
+  o.elevation_deg = units::rad_to_deg(std::atan2(0.195, 0.22));
   o.arc_deg = 180.0;
   o.focal_px = 3500.0;
   o.distortion = {-0.045, 0.08, 0.0003, -0.0002, 0.0};  // rig_sim_hires.yaml's cam0

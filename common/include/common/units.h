@@ -20,6 +20,8 @@ inline constexpr double kRadiansPerDegree = std::numbers::pi / 180;
 
 constexpr double mm_to_m(double mm) { return mm * kMetresPerMillimetre; }
 constexpr double m_to_mm(double m) { return m / kMetresPerMillimetre; }
+constexpr double deg_to_rad(double deg) { return deg * kRadiansPerDegree; }
+constexpr double rad_to_deg(double rad) { return rad / kRadiansPerDegree; }
 
 // Length units a mesh file may be written in. The names are the 3MF core specification's
 // (§3.4 "unit" attribute of <model>), which also lists exactly these six.

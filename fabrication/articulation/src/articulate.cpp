@@ -13,7 +13,7 @@
 namespace hc::articulation {
 namespace {
 
-constexpr double kMaxCone = 80 * units::kRadiansPerDegree;
+constexpr double kMaxCone = units::deg_to_rad(80);
 const Eigen::Vector3d kUp = Eigen::Vector3d::UnitY();
 
 class Stopwatch {
@@ -63,7 +63,7 @@ void apply_motion(const ArticulateOptions& o, const LinkMotion& motion,
     j->reason = fmt::format(
         "fused: the links never turn more than {:.1f} deg relative to each "
         "other in the clips",
-        o.motion.fused_below_rad / units::kRadiansPerDegree);
+        units::rad_to_deg(o.motion.fused_below_rad));
     return;
   }
   j->source = JointSource::kAnimation;
@@ -86,7 +86,7 @@ void apply_motion(const ArticulateOptions& o, const LinkMotion& motion,
   } else {
     j->notes.push_back(
         fmt::format("motion centre kept off: only {:.2f} mm inside (medial r_max {:.2f} mm)",
-                    d / units::kMetresPerMillimetre, j->r_max / units::kMetresPerMillimetre));
+                    units::m_to_mm(d), units::m_to_mm(j->r_max)));
   }
 }
 
@@ -201,8 +201,7 @@ Result<ArticulateResult> articulate(const SkinnedCharacter& c, const ArticulateO
       j.reason = fmt::format(
           "too thin: r_max {:.2f} mm leaves no room for a {} with {:.2f} mm "
           "clearance",
-          j.r_max / units::kMetresPerMillimetre, to_string(j.type),
-          o.printer.clearance_m / units::kMetresPerMillimetre);
+          units::m_to_mm(j.r_max), to_string(j.type), units::m_to_mm(o.printer.clearance_m));
     } else if (j.min_area < o.printer.min_area_m2) {
       j.excluded = true;
       j.reason = fmt::format(
@@ -210,7 +209,7 @@ Result<ArticulateResult> articulate(const SkinnedCharacter& c, const ArticulateO
           "mm^2 (r_max {:.2f} mm)",
           j.min_area / (units::kMetresPerMillimetre * units::kMetresPerMillimetre),
           o.printer.min_area_m2 / (units::kMetresPerMillimetre * units::kMetresPerMillimetre),
-          j.r_max / units::kMetresPerMillimetre);
+          units::m_to_mm(j.r_max));
     }
   }
   exclude_unseparable_joints(contacts, static_cast<int>(c.bones.size()), &out.joints);

@@ -66,7 +66,8 @@ std::vector<TriangleMesh> split_components(const TriangleMesh& m) {
   std::iota(parent.begin(), parent.end(), 0);
   const auto find = [&](int v) {
     while (parent[static_cast<std::size_t>(v)] != v)
-      v = parent[static_cast<std::size_t>(v)] = parent[static_cast<std::size_t>(parent[static_cast<std::size_t>(v)])];
+      v = parent[static_cast<std::size_t>(v)] =
+          parent[static_cast<std::size_t>(parent[static_cast<std::size_t>(v)])];
     return v;
   };
   for (Eigen::Index t = 0; t < m.num_triangles(); ++t)
@@ -250,7 +251,8 @@ Result<std::vector<CarvedPart>> carve_parts(
 
   std::vector<std::unique_ptr<geometry::MeshDistance>> hull_trees(joints.size());
   // Which links each piece holds: the link of F's nearest vertex, by majority.
-  HC_ASSIGN_OR_RETURN(const geometry::MeshDistance f_tree, geometry::MeshDistance::build(fabrication));
+  HC_ASSIGN_OR_RETURN(const geometry::MeshDistance f_tree,
+                      geometry::MeshDistance::build(fabrication));
   std::vector<CarvedPart> parts;
   for (std::size_t k = 0; k < pieces.size(); ++k) {
     TriangleMesh& piece = pieces[k].mesh;

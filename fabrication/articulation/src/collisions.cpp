@@ -27,8 +27,14 @@ class Resolver {
  public:
   Resolver(std::vector<Joint>* joints, std::vector<JointHull>* hulls, const RedesignFn& redesign,
            const HullFn& build, const CollisionOptions& options, CollisionSummary* summary)
-      : joints_(*joints), hulls_(*hulls), redesign_(redesign), build_(build), o_(options),
-        s_(*summary), distance_(joints->size()), proximity_(joints->size()) {}
+      : joints_(*joints),
+        hulls_(*hulls),
+        redesign_(redesign),
+        build_(build),
+        o_(options),
+        s_(*summary),
+        distance_(joints->size()),
+        proximity_(joints->size()) {}
 
   Status run();
 
@@ -79,13 +85,14 @@ bool Resolver::collide(int i, int j) {
   const Joint &a = J(i), &b = J(j);
   const double d = o_.clearance_m;
   const double gap = (a.centre - b.centre).norm();
-  const double ra = hulls_[static_cast<std::size_t>(i)].reach_m, rb = hulls_[static_cast<std::size_t>(j)].reach_m;
+  const double ra = hulls_[static_cast<std::size_t>(i)].reach_m,
+               rb = hulls_[static_cast<std::size_t>(j)].reach_m;
   if (gap > std::max(ra, a.r_max) + std::max(rb, b.r_max) + d) return false;
   if (gap < a.r_max + b.r_max + d) return true;  // mechanism spheres
   if (distance_[static_cast<std::size_t>(j)]->signed_distance(a.centre) < a.r_max + d) return true;
   if (distance_[static_cast<std::size_t>(i)]->signed_distance(b.centre) < b.r_max + d) return true;
-  Result<geometry::ClosestApproach> c =
-      proximity_[static_cast<std::size_t>(j)]->closest_approach(hulls_[static_cast<std::size_t>(i)].hull, d);
+  Result<geometry::ClosestApproach> c = proximity_[static_cast<std::size_t>(j)]->closest_approach(
+      hulls_[static_cast<std::size_t>(i)].hull, d);
   return !c.ok() || c->found;
 }
 
@@ -137,7 +144,8 @@ Status Resolver::run() {
   std::vector<Group> stack;
   std::vector<std::vector<int>> origins = components(active, initial);
   s_.groups = static_cast<int>(origins.size());
-  for (std::size_t k = 0; k < origins.size(); ++k) stack.push_back({origins[k], static_cast<int>(k)});
+  for (std::size_t k = 0; k < origins.size(); ++k)
+    stack.push_back({origins[k], static_cast<int>(k)});
   ProgressTask task(o_.progress, "collisions", 0);
   while (!stack.empty()) {
     Group g = stack.back();

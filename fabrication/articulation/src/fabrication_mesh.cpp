@@ -74,7 +74,8 @@ Result<FabricationMesh> build_fabrication_mesh(const SkinnedCharacter& character
   FabricationMesh out;
   FabricationMeshSummary& s = out.summary;
   TriangleMesh mesh = character.mesh;
-  const double diagonal = (mesh.vertices.colwise().maxCoeff() - mesh.vertices.colwise().minCoeff()).norm();
+  const double diagonal =
+      (mesh.vertices.colwise().maxCoeff() - mesh.vertices.colwise().minCoeff()).norm();
   fabrication::MeshRepairOptions repair;
   repair.weld_tolerance = options.weld_fraction * diagonal;
   repair.progress = options.progress;
@@ -96,8 +97,8 @@ Result<FabricationMesh> build_fabrication_mesh(const SkinnedCharacter& character
     // Several closed solids (a body and its eyes, a shirt over a torso): their exact union.
     std::vector<geometry::CsgStep> steps;
     for (std::size_t c = 1; c < components.size(); ++c)
-      steps.push_back({geometry::BooleanOperation::kUnion, components[c],
-                       fmt::format("component {}", c + 1)});
+      steps.push_back(
+          {geometry::BooleanOperation::kUnion, components[c], fmt::format("component {}", c + 1)});
     geometry::CsgOptions csg;
     csg.check_operands = false;  // checked above
     csg.progress = options.progress;
@@ -107,8 +108,8 @@ Result<FabricationMesh> build_fabrication_mesh(const SkinnedCharacter& character
       mesh = std::move(united).value();
       s.method = "union";
     } else {
-      defect = united.ok() ? "the union's rounding left self-intersections"
-                           : united.status().message();
+      defect =
+          united.ok() ? "the union's rounding left self-intersections" : united.status().message();
     }
   }
   if (!defect.empty()) {
@@ -119,10 +120,11 @@ Result<FabricationMesh> build_fabrication_mesh(const SkinnedCharacter& character
     s.method = "alpha wrap";
     s.why_wrapped = defect;
   }
-  HC_ASSIGN_OR_RETURN(out.weights, transfer_weights(character.mesh, character.dense_weights(),
-                                                    mesh.vertices));
+  HC_ASSIGN_OR_RETURN(out.weights,
+                      transfer_weights(character.mesh, character.dense_weights(), mesh.vertices));
   fabrication::MeshCheckOptions check;
-  HC_ASSIGN_OR_RETURN(const fabrication::MeshCheckReport report, fabrication::check_mesh(mesh, check));
+  HC_ASSIGN_OR_RETURN(const fabrication::MeshCheckReport report,
+                      fabrication::check_mesh(mesh, check));
   s.triangles = report.triangles;
   s.volume_m3 = report.volume;
   s.closed = report.closed;

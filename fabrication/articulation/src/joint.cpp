@@ -34,14 +34,12 @@ Status JointOverride::read(ConfigNode node) {
   if (node.optional("type", t, {"ball", "hinge", "none"})) type = t;
   double angle = 0;
   if (node.optional("frame_angle_deg", angle, Bounds::between(-360, 360)))
-    frame_angle_rad = angle * units::kRadiansPerDegree;
+    frame_angle_rad = units::deg_to_rad(angle);
   std::array<double, 2> pair{};
   if (node.optional("swing_deg", pair, Bounds::between(0, 170)))
-    swing_rad = std::array<double, 2>{pair[0] * units::kRadiansPerDegree,
-                                      pair[1] * units::kRadiansPerDegree};
+    swing_rad = std::array<double, 2>{units::deg_to_rad(pair[0]), units::deg_to_rad(pair[1])};
   if (node.optional("cone_deg", pair, Bounds::between(0, 80)))
-    cone_rad = std::array<double, 2>{pair[0] * units::kRadiansPerDegree,
-                                     pair[1] * units::kRadiansPerDegree};
+    cone_rad = std::array<double, 2>{units::deg_to_rad(pair[0]), units::deg_to_rad(pair[1])};
   if (type && *type == "ball" && swing_rad) node.error("swing_deg", "is for hinges, not balls");
   if (type && *type == "hinge" && cone_rad) node.error("cone_deg", "is for balls, not hinges");
   return node.status();

@@ -61,11 +61,10 @@ Result<std::vector<Transition>> find_transitions(const TriangleMesh& mesh,
   for (auto [j, k] : edges) {
     const int lj = label[static_cast<std::size_t>(j)], lk = label[static_cast<std::size_t>(k)];
     if (lj == lk) continue;
-    const bool j_first = link_depth[static_cast<std::size_t>(lj)] <
-                             link_depth[static_cast<std::size_t>(lk)] ||
-                         (link_depth[static_cast<std::size_t>(lj)] ==
-                              link_depth[static_cast<std::size_t>(lk)] &&
-                          lj < lk);
+    const bool j_first =
+        link_depth[static_cast<std::size_t>(lj)] < link_depth[static_cast<std::size_t>(lk)] ||
+        (link_depth[static_cast<std::size_t>(lj)] == link_depth[static_cast<std::size_t>(lk)] &&
+         lj < lk);
     const int m = j_first ? lj : lk, o = j_first ? lk : lj;
     const Eigen::Vector3d vj = mesh.vertices.row(j), vk = mesh.vertices.row(k);
     const double wj = weights(j, lj), wk = weights(k, lk);
@@ -93,8 +92,8 @@ Result<std::vector<Transition>> find_transitions(const TriangleMesh& mesh,
     t.lambdas = eig.eigenvalues().cwiseMax(0.0);
     t.normal = eig.eigenvectors().col(0);
     t.major = eig.eigenvectors().col(2);
-    t.ratio = t.lambdas(1) > 0 ? t.lambdas(2) / t.lambdas(1)
-                               : std::numeric_limits<double>::infinity();
+    t.ratio =
+        t.lambdas(1) > 0 ? t.lambdas(2) / t.lambdas(1) : std::numeric_limits<double>::infinity();
     t.degenerate = static_cast<int>(t.points.size()) < options.min_points ||
                    t.ratio > options.degenerate_ratio;
     // Orient root -> leaves: the child link's ends on the positive side, the parent's negative.

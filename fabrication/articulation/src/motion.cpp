@@ -83,8 +83,7 @@ Result<LinkMotion> fit_link_motion(const SkinnedCharacter& c, const MotionOption
         }
         Eigen::Isometry3d t = Eigen::Isometry3d::Identity();
         t.matrix() = Eigen::umeyama(src, dst, false);
-        const double rms =
-            std::sqrt(((t * src) - dst).colwise().squaredNorm().mean());
+        const double rms = std::sqrt(((t * src) - dst).colwise().squaredNorm().mean());
         out.max_fit_rms_m = std::max(out.max_fit_rms_m, rms);
         bones[b] = t;
       }
@@ -96,10 +95,8 @@ Result<LinkMotion> fit_link_motion(const SkinnedCharacter& c, const MotionOption
 }
 
 MotionEstimate estimate_joint_motion(const LinkMotion& motion, int parent, int child,
-                                     const Eigen::Vector3d& n,
-                                     const Eigen::Vector3d& prior_centre,
-                                     const std::vector<Clip>& clips,
-                                     const MotionOptions& options) {
+                                     const Eigen::Vector3d& n, const Eigen::Vector3d& prior_centre,
+                                     const std::vector<Clip>& clips, const MotionOptions& options) {
   MotionEstimate out;
   std::vector<Eigen::Vector3d> omegas;
   std::vector<Eigen::Isometry3d> tp, tc;
@@ -133,8 +130,9 @@ MotionEstimate estimate_joint_motion(const LinkMotion& motion, int parent, int c
   const Eigen::MatrixX3d off = omega - along * axis.transpose();
   out.on_axis_rms_rad = std::sqrt(along.squaredNorm() / along.size());
   out.off_axis_rms_rad = std::sqrt(off.squaredNorm() / along.size());
-  const bool one_axis = out.off_axis_rms_rad < options.hinge_off_axis_fraction * out.on_axis_rms_rad &&
-                        out.off_axis_rms_rad < options.hinge_off_axis_rad;
+  const bool one_axis =
+      out.off_axis_rms_rad < options.hinge_off_axis_fraction * out.on_axis_rms_rad &&
+      out.off_axis_rms_rad < options.hinge_off_axis_rad;
   const bool twist = std::abs(axis.dot(n)) > std::cos(options.twist_axis_within_rad);
   if (one_axis && !twist) {
     out.type = MotionJointType::kHinge;
@@ -199,7 +197,8 @@ MotionEstimate estimate_joint_motion(const LinkMotion& motion, int parent, int c
     step += csvd.matrixV().col(k) * (csvd.matrixU().col(k).dot(residual) / s(k));
   }
   out.centre = prior_centre + step;
-  out.centre_rms_m = std::sqrt((A * out.centre - rhs).squaredNorm() / static_cast<double>(tp.size()));
+  out.centre_rms_m =
+      std::sqrt((A * out.centre - rhs).squaredNorm() / static_cast<double>(tp.size()));
   return out;
 }
 

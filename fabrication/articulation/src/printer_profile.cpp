@@ -7,8 +7,6 @@
 #include <numbers>
 
 namespace hc::articulation {
-namespace {}  // namespace
-
 Result<PrinterProfile> builtin_printer_profile(const std::string& name) {
   PrinterProfile p;  // PolyJet (Objet Connex 500, VeroClear): the thesis's measured values
   if (name == "polyjet") return p;
@@ -16,9 +14,9 @@ Result<PrinterProfile> builtin_printer_profile(const std::string& name) {
     // The issue's ~0.25 mm clearance; standard SLA resins are about as strong as VeroClear
     // (tensile ~50-65 MPa), so A_min stays 10 mm^2; bumps scaled with the clearance.
     p.name = "sla";
-    p.clearance_m = 0.25 * units::kMetresPerMillimetre;
-    p.bump_radius_m = 0.6 * units::kMetresPerMillimetre;
-    p.wrap_alpha_m = 0.4 * units::kMetresPerMillimetre;
+    p.clearance_m = units::mm_to_m(0.25);
+    p.bump_radius_m = units::mm_to_m(0.6);
+    p.wrap_alpha_m = units::mm_to_m(0.4);
     return p;
   }
   if (name == "fdm") {
@@ -26,12 +24,12 @@ Result<PrinterProfile> builtin_printer_profile(const std::string& name) {
     // of the filament, so A_min is raised to 15 mm^2 (an assumption, not measured); bumps of two
     // lines; the wrap keeps features of two lines (0.8 mm).
     p.name = "fdm";
-    p.clearance_m = 0.4 * units::kMetresPerMillimetre;
+    p.clearance_m = units::mm_to_m(0.4);
     p.min_area_m2 = 15e-6;
-    p.bump_radius_m = 0.8 * units::kMetresPerMillimetre;
-    p.wrap_alpha_m = 0.8 * units::kMetresPerMillimetre;
+    p.bump_radius_m = units::mm_to_m(0.8);
+    p.wrap_alpha_m = units::mm_to_m(0.8);
     p.pins_upright = true;
-    p.max_overhang_rad = 45 * units::kRadiansPerDegree;
+    p.max_overhang_rad = units::deg_to_rad(45);
     return p;
   }
   return invalid_argument(
@@ -44,13 +42,11 @@ Status PrinterProfile::read(ConfigNode node) {
   if (Result<PrinterProfile> b = builtin_printer_profile(base); b.ok()) *this = *b;
   name = base;
   node.optional("name", name);
-  double clearance_mm = clearance_m / units::kMetresPerMillimetre,
+  double clearance_mm = units::m_to_mm(clearance_m),
          area_mm2 = min_area_m2 / (units::kMetresPerMillimetre * units::kMetresPerMillimetre);
-  double bump_mm = bump_radius_m / units::kMetresPerMillimetre,
-         cone_deg = default_cone_rad / units::kRadiansPerDegree;
-  double swing_deg = default_swing_rad / units::kRadiansPerDegree,
-         alpha_mm = wrap_alpha_m / units::kMetresPerMillimetre;
-  double overhang_deg = max_overhang_rad / units::kRadiansPerDegree;
+  double bump_mm = units::m_to_mm(bump_radius_m), cone_deg = units::rad_to_deg(default_cone_rad);
+  double swing_deg = units::rad_to_deg(default_swing_rad), alpha_mm = units::m_to_mm(wrap_alpha_m);
+  double overhang_deg = units::rad_to_deg(max_overhang_rad);
   node.optional("clearance_mm", clearance_mm, Bounds::positive());
   node.optional("min_area_mm2", area_mm2, Bounds::positive());
   node.optional("bump_radius_mm", bump_mm, Bounds::non_negative());
@@ -59,13 +55,13 @@ Status PrinterProfile::read(ConfigNode node) {
   node.optional("wrap_alpha_mm", alpha_mm, Bounds::positive());
   node.optional("pins_upright", pins_upright);
   node.optional("max_overhang_deg", overhang_deg, Bounds::between(30, 90));
-  clearance_m = clearance_mm * units::kMetresPerMillimetre;
+  clearance_m = units::mm_to_m(clearance_mm);
   min_area_m2 = area_mm2 * units::kMetresPerMillimetre * units::kMetresPerMillimetre;
-  bump_radius_m = bump_mm * units::kMetresPerMillimetre;
-  default_cone_rad = cone_deg * units::kRadiansPerDegree;
-  default_swing_rad = swing_deg * units::kRadiansPerDegree;
-  wrap_alpha_m = alpha_mm * units::kMetresPerMillimetre;
-  max_overhang_rad = overhang_deg * units::kRadiansPerDegree;
+  bump_radius_m = units::mm_to_m(bump_mm);
+  default_cone_rad = units::deg_to_rad(cone_deg);
+  default_swing_rad = units::deg_to_rad(swing_deg);
+  wrap_alpha_m = units::mm_to_m(alpha_mm);
+  max_overhang_rad = units::deg_to_rad(overhang_deg);
   return node.status();
 }
 
@@ -75,7 +71,7 @@ Status PrinterProfile::validate() const {
   if (bump_radius_m > 0 && bump_radius_m <= clearance_m)
     return invalid_argument(fmt::format(
         "bump_radius_mm ({:g}) must exceed clearance_mm ({:g}) for the bumps to grip, or be 0",
-        bump_radius_m / units::kMetresPerMillimetre, clearance_m / units::kMetresPerMillimetre));
+        units::m_to_mm(bump_radius_m), units::m_to_mm(clearance_m)));
   return {};
 }
 

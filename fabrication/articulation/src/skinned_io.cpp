@@ -1,13 +1,13 @@
 // The Assimp decoder behind skinned_reader.h: the only translation unit that includes Assimp.
 #include "fabrication/articulation/skinned_io.h"
 
-#include <assimp/Exporter.hpp>
-#include <assimp/Importer.hpp>
 #include <assimp/anim.h>
 #include <assimp/config.h>
 #include <assimp/postprocess.h>
 #include <assimp/scene.h>
 #include <fmt/format.h>
+#include <assimp/Exporter.hpp>
+#include <assimp/Importer.hpp>
 
 #include <algorithm>
 #include <cmath>
@@ -65,17 +65,17 @@ Result<std::vector<Node>> flatten_nodes(const aiNode* root, const std::string& n
     node.parent = parent;
     node.depth = parent < 0 ? 0 : nodes[static_cast<std::size_t>(parent)].depth + 1;
     if (node.depth > kMaxNodeDepth)
-      return invalid_argument(fmt::format("{}: node tree deeper than {} (a cycle?)", name,
-                                          kMaxNodeDepth));
+      return invalid_argument(
+          fmt::format("{}: node tree deeper than {} (a cycle?)", name, kMaxNodeDepth));
     if (!finite(n->mTransformation))
-      return invalid_argument(fmt::format("{}: node '{}': transformation is not finite", name,
-                                          n->mName.C_Str()));
+      return invalid_argument(
+          fmt::format("{}: node '{}': transformation is not finite", name, n->mName.C_Str()));
     node.local = to_eigen(n->mTransformation);
     const int index = static_cast<int>(nodes.size());
     nodes.push_back(node);
     if (n->mNumChildren > 0 && n->mChildren == nullptr)
-      return invalid_argument(fmt::format("{}: node '{}' lists children it does not hold", name,
-                                          n->mName.C_Str()));
+      return invalid_argument(
+          fmt::format("{}: node '{}' lists children it does not hold", name, n->mName.C_Str()));
     for (unsigned c = n->mNumChildren; c-- > 0;) stack.emplace_back(n->mChildren[c], index);
   }
   return nodes;
@@ -85,8 +85,8 @@ std::vector<Eigen::Affine3d> globals_of(const std::vector<Node>& nodes,
                                         const std::vector<Eigen::Affine3d>& locals) {
   std::vector<Eigen::Affine3d> g(nodes.size());
   for (std::size_t i = 0; i < nodes.size(); ++i)
-    g[i] = nodes[i].parent < 0 ? locals[i]
-                               : g[static_cast<std::size_t>(nodes[i].parent)] * locals[i];
+    g[i] =
+        nodes[i].parent < 0 ? locals[i] : g[static_cast<std::size_t>(nodes[i].parent)] * locals[i];
   return g;
 }
 
@@ -94,7 +94,8 @@ std::vector<Eigen::Affine3d> globals_of(const std::vector<Node>& nodes,
 template <typename Key>
 std::size_t key_before(const Key* keys, unsigned count, double t) {
   const Key* end = keys + count;
-  const Key* it = std::upper_bound(keys, end, t, [](double v, const Key& k) { return v < k.mTime; });
+  const Key* it =
+      std::upper_bound(keys, end, t, [](double v, const Key& k) { return v < k.mTime; });
   return it == keys ? 0 : static_cast<std::size_t>(it - keys - 1);
 }
 
@@ -190,7 +191,8 @@ class SceneDecoder {
 int SceneDecoder::ancestor_bone(int node) const {
   for (int n = nodes_[static_cast<std::size_t>(node)].parent; n >= 0;
        n = nodes_[static_cast<std::size_t>(n)].parent)
-    if (nodes_[static_cast<std::size_t>(n)].bone >= 0) return nodes_[static_cast<std::size_t>(n)].bone;
+    if (nodes_[static_cast<std::size_t>(n)].bone >= 0)
+      return nodes_[static_cast<std::size_t>(n)].bone;
   return -1;
 }
 
@@ -211,8 +213,8 @@ Status SceneDecoder::collect_bones() {
       if (bone == nullptr) return fail(fmt::format("mesh {}: bone {} is missing", m, b));
       auto it = node_by_name_.find(bone->mName.C_Str());
       if (it == node_by_name_.end())
-        return fail(fmt::format("mesh {}: bone '{}' names no node of the scene", m,
-                                bone->mName.C_Str()));
+        return fail(
+            fmt::format("mesh {}: bone '{}' names no node of the scene", m, bone->mName.C_Str()));
       is_bone[static_cast<std::size_t>(it->second)] = 1;
     }
   }
@@ -295,9 +297,10 @@ Status SceneDecoder::read_mesh(unsigned mesh_index, int node,
         return fail(fmt::format("mesh {}: bone '{}': weight {} names vertex {} of {}", mesh_index,
                                 ai_bone.mName.C_Str(), w, vw.mVertexId, mesh.mNumVertices));
       if (!std::isfinite(vw.mWeight) || vw.mWeight < 0)
-        return fail(fmt::format("mesh {}: bone '{}': weight {} is {} (expected a finite number "
-                                ">= 0)",
-                                mesh_index, ai_bone.mName.C_Str(), w, vw.mWeight));
+        return fail(
+            fmt::format("mesh {}: bone '{}': weight {} is {} (expected a finite number "
+                        ">= 0)",
+                        mesh_index, ai_bone.mName.C_Str(), w, vw.mWeight));
       if (vw.mWeight == 0) continue;
       const aiVector3D& p = mesh.mVertices[vw.mVertexId];
       raw_[base + vw.mVertexId].push_back(
@@ -335,9 +338,10 @@ Status SceneDecoder::read_meshes(const std::vector<Eigen::Affine3d>& rest_global
     Eigen::Vector3d p = Eigen::Vector3d::Zero();
     for (Influence& inf : raw_[v]) {
       inf.weight /= sum;
-      p += inf.weight *
-           (rest_globals[static_cast<std::size_t>(bone_nodes_[static_cast<std::size_t>(inf.bone)])] *
-            inf.local);
+      p +=
+          inf.weight *
+          (rest_globals[static_cast<std::size_t>(bone_nodes_[static_cast<std::size_t>(inf.bone)])] *
+           inf.local);
     }
     rest_[v] = p;
   }
@@ -396,13 +400,14 @@ Status SceneDecoder::read_clips() {
       if (!keys_valid(ch->mPositionKeys, ch->mNumPositionKeys) ||
           !keys_valid(ch->mRotationKeys, ch->mNumRotationKeys) ||
           !keys_valid(ch->mScalingKeys, ch->mNumScalingKeys) || !values_finite(*ch))
-        return fail(fmt::format("animation {}: channel '{}' has missing, unsorted or non-finite "
-                                "keys",
-                                a, ch->mNodeName.C_Str()));
+        return fail(
+            fmt::format("animation {}: channel '{}' has missing, unsorted or non-finite "
+                        "keys",
+                        a, ch->mNodeName.C_Str()));
       auto it = node_by_name_.find(ch->mNodeName.C_Str());
       if (it == node_by_name_.end()) {
-        out_.report.warnings.push_back(fmt::format("animation {}: channel '{}' names no node",
-                                                   a, ch->mNodeName.C_Str()));
+        out_.report.warnings.push_back(
+            fmt::format("animation {}: channel '{}' names no node", a, ch->mNodeName.C_Str()));
         continue;
       }
       channels.emplace_back(it->second, ch);
@@ -411,9 +416,9 @@ Status SceneDecoder::read_clips() {
     Clip clip;
     clip.name = anim->mName.length > 0 ? anim->mName.C_Str() : fmt::format("clip{}", a);
     const double duration_s = anim->mDuration / tps;
-    const int frames = std::clamp(
-        static_cast<int>(std::ceil(duration_s * options_.sample_rate_hz)) + 1, 2,
-        options_.max_frames_per_clip);
+    const int frames =
+        std::clamp(static_cast<int>(std::ceil(duration_s * options_.sample_rate_hz)) + 1, 2,
+                   options_.max_frames_per_clip);
     std::vector<Eigen::Affine3d> locals = default_locals;
     for (int f = 0; f < frames; ++f) {
       const double t_s = duration_s * f / (frames - 1);
@@ -468,7 +473,8 @@ Result<SkinnedCharacter> SceneDecoder::decode() {
     out_.influence_start.push_back(static_cast<std::int64_t>(out_.influences.size()));
   }
   out_.report.input_vertices = static_cast<std::int64_t>(rest_.size());
-  for (int node : bone_nodes_) out_.rest_bone_globals.push_back(rest_globals[static_cast<std::size_t>(node)]);
+  for (int node : bone_nodes_)
+    out_.rest_bone_globals.push_back(rest_globals[static_cast<std::size_t>(node)]);
   for (std::size_t b = 0; b < out_.bones.size(); ++b)
     out_.bones[b].rest_origin_m = out_.scale * out_.rest_bone_globals[b].translation() + out_.shift;
   HC_RETURN_IF_ERROR(validate(out_));
@@ -481,7 +487,8 @@ constexpr unsigned kImportFlags = aiProcess_Triangulate | aiProcess_JoinIdentica
 
 void configure(Assimp::Importer& importer) {
   importer.SetPropertyBool(AI_CONFIG_IMPORT_FBX_PRESERVE_PIVOTS, false);
-  importer.SetPropertyInteger(AI_CONFIG_PP_SBP_REMOVE, aiPrimitiveType_POINT | aiPrimitiveType_LINE);
+  importer.SetPropertyInteger(AI_CONFIG_PP_SBP_REMOVE,
+                              aiPrimitiveType_POINT | aiPrimitiveType_LINE);
 }
 
 // The format's usual name, from the extension the importer was chosen by.
@@ -496,8 +503,8 @@ Result<SkinnedCharacter> finish(Assimp::Importer& importer, const aiScene* scene
                                 const std::string& name, const std::string& ext,
                                 const SkinnedReadOptions& options) {
   if (scene == nullptr)
-    return invalid_argument(fmt::format("{}: not a readable skinned character: {}", name,
-                                        importer.GetErrorString()));
+    return invalid_argument(
+        fmt::format("{}: not a readable skinned character: {}", name, importer.GetErrorString()));
   if (scene->mFlags & AI_SCENE_FLAGS_INCOMPLETE)
     return invalid_argument(fmt::format("{}: the file holds an incomplete scene", name));
   SceneDecoder decoder(*scene, name, options);
@@ -519,8 +526,8 @@ Status check_extension(const std::string& ext, const std::string& name) {
   for (const char* k : kKnown)
     if (ext == k) return {};
   return unsupported(fmt::format(
-      "{}: unknown skinned-character format '.{}' (expected .gltf, .glb, .fbx, .dae or .x)",
-      name, ext));
+      "{}: unknown skinned-character format '.{}' (expected .gltf, .glb, .fbx, .dae or .x)", name,
+      ext));
 }
 
 aiMatrix4x4 to_assimp(const Eigen::Affine3d& a) {
@@ -556,12 +563,12 @@ aiNodeAnim* channel_of(const SkinnedCharacter& c, const Clip& clip, std::size_t 
     const Eigen::Quaterniond q(rotation);
     const Eigen::Vector3d t = local.translation();
     const double time = clip.times_s[f];  // exported at 1 tick per second
-    ch->mPositionKeys[f] = aiVectorKey(time, aiVector3D(static_cast<float>(t.x()),
-                                                        static_cast<float>(t.y()),
-                                                        static_cast<float>(t.z())));
-    ch->mRotationKeys[f] = aiQuatKey(
-        time, aiQuaternion(static_cast<float>(q.w()), static_cast<float>(q.x()),
-                           static_cast<float>(q.y()), static_cast<float>(q.z())));
+    ch->mPositionKeys[f] =
+        aiVectorKey(time, aiVector3D(static_cast<float>(t.x()), static_cast<float>(t.y()),
+                                     static_cast<float>(t.z())));
+    ch->mRotationKeys[f] =
+        aiQuatKey(time, aiQuaternion(static_cast<float>(q.w()), static_cast<float>(q.x()),
+                                     static_cast<float>(q.y()), static_cast<float>(q.z())));
     ch->mScalingKeys[f] = aiVectorKey(
         time, aiVector3D(static_cast<float>(scaling(0, 0)), static_cast<float>(scaling(1, 1)),
                          static_cast<float>(scaling(2, 2))));
@@ -598,7 +605,7 @@ std::unique_ptr<aiScene> scene_of(const SkinnedCharacter& c) {
   attach(scene->mRootNode, children.back());
 
   scene->mNumMaterials = 1;
-  scene->mMaterials = new aiMaterial*[1]{new aiMaterial};
+  scene->mMaterials = new aiMaterial* [1] { new aiMaterial };
   auto* mesh = new aiMesh;
   mesh->mName = aiString("skin");
   mesh->mPrimitiveTypes = aiPrimitiveType_TRIANGLE;
@@ -607,8 +614,8 @@ std::unique_ptr<aiScene> scene_of(const SkinnedCharacter& c) {
   mesh->mVertices = new aiVector3D[nv];
   for (unsigned v = 0; v < nv; ++v) {
     const Eigen::Vector3d p = (c.mesh.vertices.row(v).transpose() - c.shift) / c.scale;
-    mesh->mVertices[v] = aiVector3D(static_cast<float>(p.x()), static_cast<float>(p.y()),
-                                    static_cast<float>(p.z()));
+    mesh->mVertices[v] =
+        aiVector3D(static_cast<float>(p.x()), static_cast<float>(p.y()), static_cast<float>(p.z()));
   }
   mesh->mNumFaces = static_cast<unsigned>(c.mesh.num_triangles());
   mesh->mFaces = new aiFace[mesh->mNumFaces];
@@ -639,7 +646,7 @@ std::unique_ptr<aiScene> scene_of(const SkinnedCharacter& c) {
   mesh->mBones = new aiBone*[bones.size()];
   std::copy(bones.begin(), bones.end(), mesh->mBones);
   scene->mNumMeshes = 1;
-  scene->mMeshes = new aiMesh*[1]{mesh};
+  scene->mMeshes = new aiMesh* [1] { mesh };
 
   scene->mNumAnimations = static_cast<unsigned>(c.clips.size());
   if (!c.clips.empty()) scene->mAnimations = new aiAnimation*[c.clips.size()];
@@ -650,7 +657,8 @@ std::unique_ptr<aiScene> scene_of(const SkinnedCharacter& c) {
     anim->mDuration = c.clips[a].times_s.back();
     anim->mNumChannels = static_cast<unsigned>(c.bones.size());
     anim->mChannels = new aiNodeAnim*[c.bones.size()];
-    for (std::size_t b = 0; b < c.bones.size(); ++b) anim->mChannels[b] = channel_of(c, c.clips[a], b);
+    for (std::size_t b = 0; b < c.bones.size(); ++b)
+      anim->mChannels[b] = channel_of(c, c.clips[a], b);
     scene->mAnimations[a] = anim;
   }
   return scene;
@@ -668,13 +676,13 @@ Status write_skinned_character(const std::filesystem::path& path,
       {"glb", "glb2"}, {"gltf", "gltf2"}, {"fbx", "fbxa"}, {"dae", "collada"}};
   auto it = kFormat.find(ext);
   if (it == kFormat.end())
-    return unsupported(fmt::format("{}: cannot write skinned characters as '.{}'", path.string(),
-                                   ext));
+    return unsupported(
+        fmt::format("{}: cannot write skinned characters as '.{}'", path.string(), ext));
   const std::unique_ptr<aiScene> scene = scene_of(character);
   Assimp::Exporter exporter;
   if (exporter.Export(scene.get(), it->second, path.string()) != aiReturn_SUCCESS)
-    return io_error(fmt::format("{}: Assimp could not write it: {}", path.string(),
-                                exporter.GetErrorString()));
+    return io_error(
+        fmt::format("{}: Assimp could not write it: {}", path.string(), exporter.GetErrorString()));
   return {};
 }
 
@@ -712,7 +720,8 @@ Result<SkinnedCharacter> parse_skinned_character(std::string_view bytes,
                                                  std::string_view name,
                                                  const SkinnedReadOptions& options) {
   HC_RETURN_IF_ERROR(options.validate());
-  const std::string ext = lower_extension(std::filesystem::path("x." + std::string(extension_hint)));
+  const std::string ext =
+      lower_extension(std::filesystem::path("x." + std::string(extension_hint)));
   if (Status s = check_extension(ext, std::string(name)); !s.ok())
     return invalid_argument(s.message());
   if (bytes.empty()) return invalid_argument(fmt::format("{}: empty input", name));
@@ -721,8 +730,8 @@ Result<SkinnedCharacter> parse_skinned_character(std::string_view bytes,
                                         bytes.size(), options.max_file_bytes));
   Assimp::Importer importer;
   configure(importer);
-  const aiScene* scene = importer.ReadFileFromMemory(bytes.data(), bytes.size(), kImportFlags,
-                                                     ext.c_str());
+  const aiScene* scene =
+      importer.ReadFileFromMemory(bytes.data(), bytes.size(), kImportFlags, ext.c_str());
   return finish(importer, scene, std::string(name), ext, options);
 }
 
