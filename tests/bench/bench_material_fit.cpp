@@ -9,7 +9,9 @@
 //   per-example fits' time: the FEM's factorisations (factorize_share) and the rest per ktet.
 //   Measured (per-example phase, clean examples): 2.08 / 4.20 / 25.4 s at 1,800 / 3,000 / 9,996
 //   tets, 0.024 / 0.029 / 0.053 s per example per ktet; with the joint fit at 9,996 tets 139 s in
-//   all (joint phase 121 s), 2.87 GB peak.
+//   all (joint phase 121 s), 2.87 GB peak. joint_lm and joint_cg count the joint phase's LM and CG
+//   iterations (a slower machine, 2026-11-28: 21 / 21 / 23 LM and 263 / 277 / 420 CG, joint
+//   9.7 / 17.5 / 133 s).
 // * BM_JointNoiseStudy1536/<solver>: the joint phase on the three-layer noise-study block of
 //   8 x 8 x 4 cells (1,536 tets), 24 examples from the neo-Hookean reference, 20 % noise; solver 0
 //   automatic (matrix-free here), 1 dense (the path that took 944 s in issue 13). Counters:
@@ -91,6 +93,7 @@ void BM_FitScaling(benchmark::State& state) {
     state.counters["eval_rel"] = ev->error_rel_max_disp;
     state.counters["joint_matrix_free"] = summary.joint.matrix_free ? 1 : 0;
     state.counters["joint_cg"] = static_cast<double>(summary.joint.cg_iterations);
+    state.counters["joint_lm"] = summary.joint.iterations;
     double lm = 0, cg = 0, matrix_free = 0, factorizations = 0, factorize_s = 0, fit_s = 0;
     for (const material::ParameterFitSummary& e : summary.examples) {
       lm += e.iterations;
