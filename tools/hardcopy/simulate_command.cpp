@@ -138,11 +138,11 @@ int run_simulate(const GlobalOptions& global, const SimulateArgs& args) {
   if (args.json) {
     Json steps = Json::array();
     for (const auto& s : r->steps)
-      steps.push_back({{"depth_m", s.depth_m}, {"force_n", s.force_n}});
+      steps.push_back(
+          {{"depth_m", s.depth_m}, {"force_n", s.force_n}, {"iterations", s.iterations}});
     const scene::MeshReport& m = r->mesh_report;
-    Json mesh{{"method", m.method},           {"nodes", m.nodes},
-              {"tets", m.tets},               {"min_edge_m", m.min_edge_m},
-              {"max_edge_m", m.max_edge_m},   {"time_s", m.time_s}};
+    Json mesh{{"method", m.method},         {"nodes", m.nodes},           {"tets", m.tets},
+              {"min_edge_m", m.min_edge_m}, {"max_edge_m", m.max_edge_m}, {"time_s", m.time_s}};
     if (m.method == "contact_adaptive") {
       mesh["focus_m"] = {m.focus_m.x(), m.focus_m.y(), m.focus_m.z()};
       mesh["patch_radius_m"] = m.patch_radius_m;
