@@ -7,6 +7,7 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <span>
 #include <string>
 #include <vector>
 
@@ -169,8 +170,10 @@ struct ContactSolver::Impl {
   Status precondition(const Eigen::VectorXd& r, Eigen::VectorXd* z) const;
 
   Status solve_depth(double depth, ContactSummary* s);
-  // From the equilibrium fem holds (at solved_depth) to `depth`, halving the increment where its
-  // active set does not settle (kCutBackAfter); adds its iterations and factorisations to *s.
+  // The increments to each of `depths` in turn; *s sums their iterations and factorisations.
+  Status step_through(std::span<const double> depths, int cutbacks, ContactSummary* s);
+  // From the equilibrium fem holds (at solved_depth) to `depth`, solved again as two halves where
+  // its active set does not settle (kCutBackAfter), `cutbacks` halvings deep so far.
   Status step_to(double depth, int cutbacks, ContactSummary* s);
   // One increment. With `abandoned`, gives up (sets it, state unchanged but fem's positions) when
   // the active set still changes after kCutBackAfter iterations.
@@ -327,10 +330,18 @@ Status ContactSolver::Impl::solve_depth(double depth, ContactSummary* s) {
   const double from = solved_depth;
   const int substeps = std::max(1, static_cast<int>(std::ceil(std::abs(depth - from) / max_step)));
   if (substeps > 100000) return invalid_argument("contact: depth too large for this mesh");
+  std::vector<double> depths(static_cast<std::size_t>(substeps));
+  for (int k = 1; k <= substeps; ++k)
+    depths[static_cast<std::size_t>(k - 1)] =
+        (k == substeps) ? depth : from + (depth - from) * k / substeps;
+  return step_through(depths, 0, s);
+}
+
+Status ContactSolver::Impl::step_through(std::span<const double> depths, int cutbacks,
+                                         ContactSummary* s) {
   int iterations = 0, factorizations = 0;
-  for (int k = 1; k <= substeps; ++k) {
-    const double dk = (k == substeps) ? depth : from + (depth - from) * k / substeps;
-    const Status st = step_to(dk, 0, s);
+  for (const double d : depths) {
+    const Status st = step_to(d, cutbacks, s);
     iterations += s->iterations;
     factorizations += s->factorizations;
     if (!st.ok()) return st;
@@ -344,18 +355,14 @@ Status ContactSolver::Impl::step_to(double depth, int cutbacks, ContactSummary* 
   const double from = solved_depth;
   const MatrixX3d start = fem->positions();
   bool abandoned = false;
-  const Status st = solve_depth_once(depth, s, cutbacks < kMaxCutBacks ? &abandoned : nullptr);
-  if (!st.ok() || !abandoned) return st;
-  int iterations = s->iterations, factorizations = s->factorizations;
+  HC_RETURN_IF_ERROR(solve_depth_once(depth, s, cutbacks < kMaxCutBacks ? &abandoned : nullptr));
+  if (!abandoned) return {};
+  const int iterations = s->iterations, factorizations = s->factorizations;
   HC_RETURN_IF_ERROR(fem->set_positions(start));
-  for (const double to : {0.5 * (from + depth), depth}) {
-    const Status half = step_to(to, cutbacks + 1, s);
-    iterations += s->iterations;
-    factorizations += s->factorizations;
-    if (!half.ok()) return half;
-  }
-  s->iterations = iterations;
-  s->factorizations = factorizations;
+  const double halves[] = {0.5 * (from + depth), depth};
+  HC_RETURN_IF_ERROR(step_through(halves, cutbacks + 1, s));
+  s->iterations += iterations;
+  s->factorizations += factorizations;
   return {};
 }
 
