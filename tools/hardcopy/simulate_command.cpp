@@ -135,6 +135,7 @@ int run_simulate(const GlobalOptions& global, const SimulateArgs& args) {
         {"displacement_m", 3, std::vector<double>(u.data(), u.data() + u.size())});
     if (Status s = write_vtu(args.vtu, r->mesh, data); !s.ok()) return ctx.fail("simulate", s);
   }
+  for (const std::string& w : r->warnings) fmt::print(stderr, "simulate: warning: {}\n", w);
   if (args.json) {
     Json steps = Json::array();
     for (const auto& s : r->steps)
@@ -159,6 +160,7 @@ int run_simulate(const GlobalOptions& global, const SimulateArgs& args) {
            {"nodes", r->mesh.num_nodes()},
            {"tets", r->mesh.num_tets()},
            {"mesh", mesh},
+           {"warnings", r->warnings},
            {"time_s", r->time_s}};
     if (!args.vtu.empty()) j["vtu"] = args.vtu;
     if (Status s = print_json(j); !s.ok()) return ctx.fail("simulate", s);
@@ -235,8 +237,9 @@ void add_simulate_commands(CLI::App& app, const GlobalOptions& global, int* exit
       "starts inside the specimen).");
   s->add_option("SCENE", sargs->scene, "Scene JSON file")->required();
   s->add_flag("--json", sargs->json,
-              "Print one JSON object: force_n, depth_m, max_displacement_m, steps, nodes, tets, "
-              "mesh (how the specimen was meshed), time_s");
+              "Print one JSON object: force_n, depth_m, max_displacement_m, steps (force and "
+              "iterations per load step), nodes, tets, mesh (how the specimen was meshed), "
+              "warnings, time_s");
   s->add_option("--vtu", sargs->vtu, "Write the deformed mesh with displacements (.vtu)");
   s->callback([&global, sargs, exit_code] { *exit_code = run_simulate(global, *sargs); });
 

@@ -141,6 +141,24 @@ TEST(ContactDefaults, SphereForceDoesNotDependOnTheLoadSteps) {
   EXPECT_NEAR(force[0], expected, kDefaultSettingsTolerance * expected);
 }
 
+// Near-incompressible materials are warned about (scene.h, kLockingPoisson), others not; an
+// explicit coarse mesh keeps this quick.
+TEST(ContactDefaults, NearIncompressibleMaterialsAreWarnedAbout) {
+  for (const double nu : {0.3, 0.45, 0.49}) {
+    nlohmann::json j = contact_scene({0.05, 0.05, 0.025}, 0.5e6, nu, "sphere", 0.01, 5e-4);
+    j["specimen"]["cells"] = {4, 4, 2};
+    j["steps"] = 1;
+    Result<SimulationResult> r = simulate_scene(j);
+    ASSERT_TRUE(r.ok()) << r.status().to_string();
+    if (nu >= kLockingPoisson) {
+      ASSERT_EQ(r->warnings.size(), 1u) << nu;
+      EXPECT_NE(r->warnings[0].find("incompressible"), std::string::npos) << r->warnings[0];
+    } else {
+      EXPECT_TRUE(r->warnings.empty()) << nu << ": " << r->warnings.front();
+    }
+  }
+}
+
 // The first report: the documented box, no mesh keys, a sphere just above the top face
 // (was "the probe does not reach the specimen": the default mesh had almost no nodes). Also by
 // force, which needs the specimen's modulus to size the patch (Hertz depth of 0.5 N: 0.36 mm).
