@@ -9,15 +9,14 @@
 #include <cmath>
 #include <optional>
 
-#include "clock.h"
+#include "common/clock.h"
 #include "fit_example.h"
 #include "processing/fem/blas_threads.h"
 
 namespace hc::composite {
 namespace {
 
-using detail::Clock;
-using detail::seconds_since;
+using Clock = std::chrono::steady_clock;
 
 // Examples whose total forces lie within this relative distance share a force level (Table 5.8.1).
 constexpr double kForceLevelTolerance = 0.05;

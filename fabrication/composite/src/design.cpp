@@ -13,13 +13,12 @@
 #include <random>
 #include <set>
 
-#include "clock.h"
+#include "common/clock.h"
 
 namespace hc::composite {
 namespace {
 
-using detail::Clock;
-using detail::seconds_since;
+using Clock = std::chrono::steady_clock;
 
 // Lloyd iterations of the per-level K-means (converges in a handful on a few hundred nodes).
 constexpr int kKMeansIterations = 20;

@@ -10,7 +10,7 @@
 #include <optional>
 #include <random>
 
-#include "clock.h"
+#include "common/clock.h"
 #include "processing/fem/blas_threads.h"
 #include "processing/fem/corotational.h"
 #include "processing/fem/incremental.h"
@@ -18,7 +18,7 @@
 namespace hc::composite {
 namespace {
 
-using detail::Clock;
+using Clock = std::chrono::steady_clock;
 
 // Per example: the reduced model and the target in reduced coordinates.
 struct ReducedExample {
@@ -256,7 +256,7 @@ Result<Screen> Screen::create(const material::Samples& samples, const CellGrid& 
     HC_RETURN_IF_ERROR(st[i].with_context(fmt::format("screen: examples[{}]", i)));
   Screen screen(std::move(impl));
   HC_RETURN_IF_ERROR(screen.set_target(samples));
-  screen.impl_->setup_time_s = detail::seconds_since(t0);
+  screen.impl_->setup_time_s = seconds_since(t0);
   return screen;
 }
 
