@@ -15,6 +15,8 @@
 #include <random>
 #include <set>
 
+#include "common/huge_pages.h"
+
 namespace hc {
 namespace {
 
@@ -194,19 +196,6 @@ Status write_file_atomic(const std::filesystem::path& path, std::string_view byt
       return io_error(fmt::format("{}: close failed: {}", path.string(), errno_text()));
     return {};
   });
-}
-
-void advise_huge_pages(void* p, std::size_t bytes) {
-#if defined(__linux__) && defined(MADV_HUGEPAGE)
-  constexpr std::uintptr_t kHugePage = std::uintptr_t{2} << 20;
-  const auto begin = reinterpret_cast<std::uintptr_t>(p);
-  const std::uintptr_t first = (begin + kHugePage - 1) & ~(kHugePage - 1);
-  const std::uintptr_t last = (begin + bytes) & ~(kHugePage - 1);
-  if (last > first) ::madvise(reinterpret_cast<void*>(first), last - first, MADV_HUGEPAGE);
-#else
-  (void)p;
-  (void)bytes;
-#endif
 }
 
 }  // namespace hc

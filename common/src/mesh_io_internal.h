@@ -21,6 +21,7 @@
 #include <vector>
 
 #include "common/file_io.h"
+#include "common/huge_pages.h"
 #include "common/mesh.h"
 #include "common/mesh_io.h"
 #include "common/status.h"

@@ -61,9 +61,4 @@ class AtomicFileGroup {
   bool committed_ = false;
 };
 
-// Best effort: asks the kernel to back the 2 MiB-aligned interior of a large buffer with
-// transparent huge pages. On virtual machines first-touch page faults dominate reading big files
-// (measured: ~190 ms of the 222 ms to read a 50 MB STL); huge pages cut that several-fold.
-void advise_huge_pages(void* p, std::size_t bytes);
-
 }  // namespace hc
