@@ -46,6 +46,11 @@ find_package(Ceres REQUIRED)
 
 # calibration and tracking: OpenCV 4.6 (Debian); aruco is in libopencv-contrib-dev.
 find_package(OpenCV 4 REQUIRED COMPONENTS core imgproc imgcodecs calib3d features2d aruco)
+# What the libraries link: every module but the image codecs, which bring ~110 shared libraries
+# (GDAL, GDCM, video codecs; 0.14 s to load in every process) and which calibration/cameras
+# loads on first use (image_codecs.cpp). Tests that write images link ${OpenCV_LIBS}.
+set(HARDCOPY_OPENCV_LIBS ${OpenCV_LIBS})
+list(REMOVE_ITEM HARDCOPY_OPENCV_LIBS opencv_imgcodecs)
 
 # rig: compression for MCAP chunks, device access, image files.
 pkg_check_modules(ZSTD REQUIRED IMPORTED_TARGET libzstd)

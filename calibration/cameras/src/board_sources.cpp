@@ -4,7 +4,6 @@
 #include <glob.h>
 
 #include <opencv2/core.hpp>
-#include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
 #include <algorithm>
@@ -14,6 +13,7 @@
 #include <optional>
 #include <set>
 
+#include "calibration/cameras/image_codecs.h"
 #include "common/clock.h"
 #include "common/json.h"
 #include "rig_daemon/recording/foxglove_image.h"
@@ -61,11 +61,11 @@ Status decode_grey(const recording::MessageEvent& m, const std::string& where, c
       Result<recording::CompressedImage> ci_img =
           recording::decode_compressed_image(m.message.data);
       if (!ci_img.ok()) return ci_img.status().with_context(where);
-      grey = cv::imdecode(
-          cv::Mat(1, static_cast<int>(ci_img->data.size()), CV_8UC1, ci_img->data.data()),
-          cv::IMREAD_GRAYSCALE);
-      if (grey.empty())
+      Result<GreyImage> decoded = decode_grey_image(ci_img->data);
+      if (!decoded.ok()) return decoded.status().with_context(where);
+      if (decoded->empty())
         return invalid_argument(where + ": undecodable " + ci_img->format + " image");
+      cv::Mat(decoded->height, decoded->width, CV_8UC1, decoded->pixels.data()).copyTo(grey);
     } else {
       Result<recording::RawImage> raw = recording::decode_raw_image(m.message.data);
       if (!raw.ok()) return raw.status().with_context(where);
@@ -158,24 +158,19 @@ Result<std::vector<CameraObservations>> detect_in_images(const std::vector<Image
       if (!views.insert(view).second)
         return invalid_argument(fmt::format("{}: camera '{}' has two images with view number {}",
                                             f.string(), s.camera, view));
-      cv::Mat img;
-      try {
-        img = cv::imread(f.string(), cv::IMREAD_GRAYSCALE);
-      } catch (const cv::Exception& e) {
-        return invalid_argument(f.string() + ": unreadable image: " + e.what());
-      }
+      HC_ASSIGN_OR_RETURN(GreyImage img, read_grey_image(f));
       if (img.empty())
         return invalid_argument(f.string() + ": unreadable image (missing or not an image file)");
       if (cam.width == 0) {
-        cam.width = img.cols;
-        cam.height = img.rows;
-      } else if (cam.width != img.cols || cam.height != img.rows) {
+        cam.width = img.width;
+        cam.height = img.height;
+      } else if (cam.width != img.width || cam.height != img.height) {
         return invalid_argument(fmt::format("{}: {}x{} but camera '{}' images are {}x{}",
-                                            f.string(), img.cols, img.rows, s.camera, cam.width,
+                                            f.string(), img.width, img.height, s.camera, cam.width,
                                             cam.height));
       }
-      ImageView v{img.cols, img.rows, static_cast<int>(img.step), 1, img.data};
-      HC_ASSIGN_OR_RETURN(std::optional<BoardDetection> d, detect_board(v, board, options));
+      HC_ASSIGN_OR_RETURN(std::optional<BoardDetection> d,
+                          detect_board(img.view(), board, options));
       ++st.images;
       if (d) {
         ++st.boards_found;
