@@ -11,7 +11,10 @@
 //   tets, 0.024 / 0.029 / 0.053 s per example per ktet; with the joint fit at 9,996 tets 139 s in
 //   all (joint phase 121 s), 2.87 GB peak. joint_lm and joint_cg count the joint phase's LM and CG
 //   iterations (a slower machine, 2026-11-28: 21 / 21 / 23 LM and 263 / 277 / 420 CG, joint
-//   9.7 / 17.5 / 133 s).
+//   9.7 / 17.5 / 133 s). factor_entries_per_tet: what one solve with an example's factor reads,
+//   per tet: 42.8 / 65.5 / 113 (x2.64 over 5.55x the tets; that machine, per-example phase 2.97 /
+//   5.03 / 35.7 s, CG per example 108 / 102 / 147): the per-example time per ktet grows with the
+//   direct factor's fill, ~n^(1/3) for nested dissection in 3-D, not with the fit's own work.
 // * BM_JointNoiseStudy1536/<solver>: the joint phase on the three-layer noise-study block of
 //   8 x 8 x 4 cells (1,536 tets), 24 examples from the neo-Hookean reference, 20 % noise; solver 0
 //   automatic (matrix-free here), 1 dense (the path that took 944 s in issue 13). Counters:
@@ -33,6 +36,7 @@
 
 #include "../unit/material/hyperelastic_reference.h"
 #include "../unit/material/material_test_util.h"
+#include "processing/fem/corotational.h"
 #include "processing/material/fit.h"
 
 namespace {
@@ -66,8 +70,7 @@ const material::Samples& stiffening_samples(int64_t tets) {
 void BM_FitScaling(benchmark::State& state) {
   const material::Samples& clean = stiffening_samples(state.range(0));
   const bool joint = state.range(1) != 0;
-  const material::Samples samples =
-      joint ? material::add_displacement_noise(clean, 0.1, 7) : clean;
+  const material::Samples samples = joint ? material::add_displacement_noise(clean, 0.1, 7) : clean;
   for (auto _ : state) {
     material::HeterogeneousFitOptions options;
     if (joint) {
@@ -113,6 +116,14 @@ void BM_FitScaling(benchmark::State& state) {
     state.counters["rest_s_per_example_per_ktet"] =
         (1 - share) * summary.parameter_time_s / n / ktets;
     state.counters["matrix_free_examples"] = matrix_free;
+    // What one solve with an example's factor reads: its entries per tet. A solve costs about as
+    // many flops as the factor has entries, and a nested-dissection factor of a 3-D mesh has
+    // ~n^(4/3) of them, so the per-example time per ktet can grow as this does.
+    hc::Result<hc::fem::CorotationalFem> model =
+        hc::fem::CorotationalFem::create(samples.mesh, samples.examples.front().fixed_nodes);
+    if (model.ok())
+      state.counters["factor_entries_per_tet"] =
+          model->cholesky().summary().nnz_factor / static_cast<double>(samples.mesh.num_tets());
   }
 }
 BENCHMARK(BM_FitScaling)
