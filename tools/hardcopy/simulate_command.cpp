@@ -150,6 +150,7 @@ int run_simulate(const GlobalOptions& global, const SimulateArgs& args) {
       mesh["fine_size_m"] = m.fine_size_m;
       mesh["coarse_size_m"] = m.coarse_size_m;
       mesh["growth"] = m.growth;
+      mesh["elements_per_radius"] = m.elements_per_radius;
     }
     Json j{{"scene", args.scene},
            {"model", r->model},

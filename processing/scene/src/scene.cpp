@@ -53,8 +53,16 @@ Status parse_youngs_poisson(const JsonNode& j, double* e, double* nu,
 }
 
 Status parse_specimen(const JsonNode& j, const std::filesystem::path& base, SpecimenSpec* s) {
-  HC_RETURN_IF_ERROR(j.only_keys({"box_m", "max_tet_volume_m3", "cells", "mesh", "scale_to_m"}));
+  HC_RETURN_IF_ERROR(j.only_keys({"box_m", "max_tet_volume_m3", "cells", "mesh", "scale_to_m",
+                                  "contact_elements_per_radius"}));
   HC_RETURN_IF_ERROR(j.optional("max_tet_volume_m3", s->max_tet_volume_m3, Bounds::positive()));
+  // Above 16 the fine region alone would exceed a million tets.
+  HC_RETURN_IF_ERROR(j.optional("contact_elements_per_radius", s->contact_elements_per_radius,
+                                Bounds::between(1, 16)));
+  if (const auto n = j.find("contact_elements_per_radius");
+      n && (j.has("cells") || j.has("max_tet_volume_m3")))
+    return n->error(
+        "refines the contact-adaptive mesh: not with \"cells\" or \"max_tet_volume_m3\"");
   if (j.has("box_m") == j.has("mesh")) {
     return j.error("needs exactly one of \"box_m\" and \"mesh\"");
   }

@@ -31,8 +31,7 @@ Result<double> effective_modulus(const MaterialSpec& m, double z) {
       }
     }
   } else if (m.kind == MaterialKind::kFile) {
-    HC_ASSIGN_OR_RETURN(std::unique_ptr<fem::MaterialModel> model,
-                        material::load_material(m.file));
+    HC_ASSIGN_OR_RETURN(std::unique_ptr<fem::MaterialModel> model, material::load_material(m.file));
     const fem::YoungsPoisson yp =
         fem::youngs_poisson_from_lambda_alpha(model->params(0, fem::Vector6d::Zero()));
     e = yp.youngs_pa;
@@ -111,7 +110,6 @@ Result<std::vector<int>> fixed_nodes(const Scene& scene, const TetMesh& mesh) {
   return out;
 }
 
-
 Result<TetMesh> build_specimen(const Scene& scene, MeshReport* report) {
   const auto t0 = std::chrono::steady_clock::now();
   const SpecimenSpec& spec = scene.specimen;
@@ -131,14 +129,21 @@ Result<TetMesh> build_specimen(const Scene& scene, MeshReport* report) {
     }
     HC_ASSIGN_OR_RETURN(std::unique_ptr<fem::Probe> probe, build_probe(scene.probe));
     // The patch's z picks the layer whose modulus sets the expected depth under force control.
-    HC_ASSIGN_OR_RETURN(
-        const double e_star,
-        effective_modulus(scene.material, surface.vertices.col(2).maxCoeff()));
+    HC_ASSIGN_OR_RETURN(const double e_star,
+                        effective_modulus(scene.material, surface.vertices.col(2).maxCoeff()));
     HC_ASSIGN_OR_RETURN(const ContactPatch patch,
                         expected_contact_patch(surface, *probe, scene.load, e_star));
     const Eigen::AlignedBox3d box(surface.vertices.colwise().minCoeff().transpose(),
                                   surface.vertices.colwise().maxCoeff().transpose());
-    const meshing::GradedSize size = contact_size_field(patch, box);
+    ContactMeshingOptions meshing_options;
+    if (spec.contact_elements_per_radius > 0) {
+      // The fine region's tets grow as the cube of the refinement: so does the budget.
+      const double ratio =
+          spec.contact_elements_per_radius / meshing_options.elements_per_patch_radius;
+      meshing_options.max_tets *= std::max(1.0, ratio * ratio * ratio);
+      meshing_options.elements_per_patch_radius = spec.contact_elements_per_radius;
+    }
+    const meshing::GradedSize size = contact_size_field(patch, box, meshing_options);
     meshing::TetrahedralizeOptions options;
     options.max_radius_edge_ratio = 1.414;
     options.edge_size = size;
@@ -152,6 +157,7 @@ Result<TetMesh> build_specimen(const Scene& scene, MeshReport* report) {
     r.fine_size_m = size.fine;
     r.coarse_size_m = size.coarse;
     r.growth = size.growth;
+    r.elements_per_radius = meshing_options.elements_per_patch_radius;
   }
   r.nodes = static_cast<long>(mesh.num_nodes());
   r.tets = static_cast<long>(mesh.num_tets());

@@ -16,8 +16,8 @@
 #include <string>
 
 #include "cli_run.h"
-#include "test_data.h"
 #include "sanitizer.h"
+#include "test_data.h"
 
 namespace hc::scene {
 namespace {
@@ -126,6 +126,19 @@ TEST(SceneReader, BadInputNamesTheKey) {
        },
        "material.neo_hookean.stiffening"},
       {[](auto& j) { j["specimen"]["colour"] = 1; }, "unknown key"},
+      // The base scene has "cells": the refinement is of the contact-adaptive mesh only.
+      {[](auto& j) { j["specimen"]["contact_elements_per_radius"] = 6; },
+       "specimen.contact_elements_per_radius"},
+      {[](auto& j) {
+         j["specimen"].erase("cells");
+         j["specimen"]["contact_elements_per_radius"] = 0.5;
+       },
+       "specimen.contact_elements_per_radius"},
+      {[](auto& j) {
+         j["specimen"].erase("cells");
+         j["specimen"]["contact_elements_per_radius"] = 40;
+       },
+       "specimen.contact_elements_per_radius"},
       {[](auto& j) { j["extra"] = 1; }, "unknown key"},
   };
   for (const auto& [mutate, expected] : cases) {
