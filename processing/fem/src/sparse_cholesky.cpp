@@ -305,6 +305,7 @@ Status SparseCholesky::solve_single_precision(const Eigen::MatrixXd& b, Eigen::M
     return failed_precondition("sparse Cholesky: solve_single_precision() without a factorisation");
   const cholmod_factor* f = s.factor;
   if (!f->is_super || !f->is_ll) return solve(b, x);
+  // Many small BLAS calls: with OpenBLAS's threads each waits for a worker (blas_threads.h).
   const SingleThreadedBlasScope single;
   if (b.rows() != s.n) {
     return invalid_argument("sparse Cholesky: right-hand side has " + std::to_string(b.rows()) +
@@ -328,8 +329,10 @@ Status SparseCholesky::solve_single_precision(const Eigen::MatrixXd& b, Eigen::M
   // L Lᵀ = P A Pᵀ: Y = P B, L Z = Y, Lᵀ W = Z, X = Pᵀ W, in place in Y. Supernode k holds columns
   // super[k] .. super[k + 1] of L as a dense column-major block: its rows are rows[pi[k] ..], the
   // first of them its own columns (a lower-triangular block), the rest below. Blocks of at least
-  // kBlasEntries go to OpenBLAS, whose threads share a large block's memory traffic; smaller ones
-  // stay in Eigen (no call overhead). Default Hertz scene (10.8M factor entries), 80 solves:
+  // kBlasEntries go to OpenBLAS (single-threaded: see the scope above); smaller ones stay in
+  // Eigen (no call overhead). Measured with OpenBLAS's two threads, before the solves were made
+  // single-threaded (the default Hertz scene's `simulate` took the same time either way when the
+  // machine was idle): default Hertz scene (10.8M factor entries), 80 solves:
   // CHOLMOD's double solve 0.86 s, this 0.56 s (with the threshold at 2^16: 0.78 s). On grid
   // Laplacians with 3 rows per node (the unit test's), per solve: 1.4M entries 1.29 -> 0.90 ms,
   // 6.5M 5.4 -> 3.4 ms, 27M 31.5 -> 17.6 ms.
